@@ -1,0 +1,82 @@
+"""ESI parser speed: plain lxml, catalog (cold and cached), full parse.
+
+Usage: python benchmarks/bench_esi.py [ESI_DIR] [--runs N]
+
+Prints the median of N runs (default 5) of:
+- plain `lxml.etree.parse` of every *.xml under ESI_DIR (the yardstick),
+- `build_catalog` with an empty cache (targets: within 1.3x of plain lxml),
+- `build_catalog` answered from the cache (target: < 0.1 s),
+- `parse_all`: every device fully parsed (target: < 1.5 s).
+The cache lives in a temporary XDG_CACHE_HOME, never the user's.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+from lxml import etree
+
+from fastcs_ethercat.esi import build_catalog, parse_all
+
+DEFAULT_ESI = Path(__file__).resolve().parents[1] / ".." / "shared" / "esi"
+
+
+def median_seconds(action: Callable[[], object], runs: int) -> float:
+    """Median wall time of `runs` calls of `action`."""
+    times = []
+    for _ in range(runs):
+        start = time.perf_counter()
+        action()
+        times.append(time.perf_counter() - start)
+    return statistics.median(times)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description="ESI parser benchmark")
+    parser.add_argument("esi_dir", nargs="?", type=Path, default=DEFAULT_ESI)
+    parser.add_argument("--runs", type=int, default=5)
+    args = parser.parse_args()
+    files = sorted(args.esi_dir.rglob("*.xml"))
+    size = sum(path.stat().st_size for path in files)
+    print(f"{len(files)} files, {size / 1e6:.1f} MB under {args.esi_dir}")
+
+    with tempfile.TemporaryDirectory() as cache_home:
+        os.environ["XDG_CACHE_HOME"] = cache_home
+        cache_dir = Path(cache_home) / "fastcs-ethercat" / "esi-catalog"
+
+        def plain() -> None:
+            for path in files:
+                etree.parse(str(path))
+
+        def cold() -> None:
+            for stale in cache_dir.glob("*.json"):
+                stale.unlink()
+            build_catalog(args.esi_dir)
+
+        plain_s = median_seconds(plain, args.runs)
+        cold_s = median_seconds(cold, args.runs)
+        nocache_s = median_seconds(
+            lambda: build_catalog(args.esi_dir, use_cache=False), args.runs
+        )
+        build_catalog(args.esi_dir)
+        warm_s = median_seconds(lambda: build_catalog(args.esi_dir), args.runs)
+        devices = len(build_catalog(args.esi_dir))
+        full_s = median_seconds(lambda: parse_all(args.esi_dir), max(1, args.runs))
+
+    print(f"plain lxml.etree.parse, all files : {plain_s:7.3f} s")
+    ratio = cold_s / plain_s
+    print(f"catalog, cold cache               : {cold_s:7.3f} s  ({ratio:.2f}x lxml)")
+    print(f"catalog, no cache                 : {nocache_s:7.3f} s")
+    print(f"catalog, cached                   : {warm_s:7.3f} s")
+    print(f"full parse of {devices} devices      : {full_s:7.3f} s")
+    print(f"(medians of {args.runs} runs)")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,610 @@
+"""ADS command payloads (the bytes after the AMS header), both directions.
+
+One dataclass per request and per response, each with `encode()` and a
+`decode(payload)` class method; `decode_request` / `decode_response` dispatch
+on the AMS command id. Layouts: facts file section 2 and Beckhoff's ADS
+specification. Every decoder raises only `AdsCodecError`, whose return code
+is what a server answers (0x705 for a payload of the wrong size, 0x701 for an
+unknown command).
+"""
+
+from __future__ import annotations
+
+import struct
+from dataclasses import dataclass, field
+from datetime import UTC, datetime, timedelta
+from typing import ClassVar, Final, Self, TypeVar
+
+from fastcs_ethercat.ads.constants import (
+    NOTIFICATION_TIME_UNITS_PER_MS,
+    AdsReturnCode,
+    AmsCommand,
+)
+from fastcs_ethercat.ads.errors import AdsCodecError
+from fastcs_ethercat.ads.wire import ByteReader, decode_c_string, encode_text
+
+DEVICE_NAME_SIZE: Final = 16
+NOTIFICATION_RESERVED_SIZE: Final = 16
+
+FILETIME_UNIX_EPOCH: Final = 116_444_736_000_000_000
+"""1970-01-01T00:00:00Z as a FILETIME (100 ns ticks since 1601-01-01 UTC)."""
+FILETIME_TICKS_PER_SECOND: Final = 10_000_000
+_FILETIME_START: Final = datetime(1601, 1, 1, tzinfo=UTC)
+
+_T = TypeVar("_T")
+
+
+def _pack(fmt: str, *values: int) -> bytes:
+    """struct.pack that reports out-of-range fields as a codec error."""
+    try:
+        return struct.pack(fmt, *values)
+    except struct.error as error:
+        raise AdsCodecError(
+            f"field out of range for {fmt!r}: {error}",
+            AdsReturnCode.DEVICE_INVALID_DATA,
+        ) from error
+
+
+# -- time stamps ------------------------------------------------------------
+
+
+def filetime_from_unix_ns(unix_ns: int) -> int:
+    """FILETIME ticks for nanoseconds since the Unix epoch (time.time_ns())."""
+    return FILETIME_UNIX_EPOCH + unix_ns // 100
+
+
+def filetime_to_unix_ns(filetime: int) -> int:
+    """Nanoseconds since the Unix epoch for FILETIME ticks."""
+    return (filetime - FILETIME_UNIX_EPOCH) * 100
+
+
+def filetime_from_datetime(moment: datetime) -> int:
+    """FILETIME ticks of an aware datetime (a naive one is taken as UTC)."""
+    if moment.tzinfo is None:
+        moment = moment.replace(tzinfo=UTC)
+    delta = moment - _FILETIME_START
+    return (
+        delta.days * 86_400 * FILETIME_TICKS_PER_SECOND
+        + delta.seconds * FILETIME_TICKS_PER_SECOND
+        + delta.microseconds * 10
+    )
+
+
+def filetime_to_datetime(filetime: int) -> datetime:
+    """Aware UTC datetime of FILETIME ticks (microsecond resolution)."""
+    return _FILETIME_START + timedelta(microseconds=filetime // 10)
+
+
+def notification_time_from_ms(milliseconds: float) -> int:
+    """Max delay / cycle time field value (100 ns units) for milliseconds."""
+    return round(milliseconds * NOTIFICATION_TIME_UNITS_PER_MS)
+
+
+def notification_time_to_ms(units: int) -> float:
+    """Milliseconds for a max delay / cycle time field value."""
+    return units / NOTIFICATION_TIME_UNITS_PER_MS
+
+
+# -- shared pieces ----------------------------------------------------------
+
+
+def _result_only(reader: ByteReader) -> int | None:
+    """If the payload is just a failing result, return it; else None.
+
+    Some servers answer a failed Read/ReadWrite/... with only the 4-byte
+    result instead of the full layout; accept that on decode.
+    """
+    if reader.remaining == 4:
+        result = reader.u32()
+        if result != AdsReturnCode.NO_ERROR:
+            return result
+        raise AdsCodecError(
+            f"{reader.what}: a successful response needs more than its result",
+            AdsReturnCode.DEVICE_INVALID_SIZE,
+        )
+    return None
+
+
+def _sized_data(reader: ByteReader, length: int) -> bytes:
+    """Read `length` data bytes that must be exactly the rest of the payload."""
+    if length != reader.remaining:
+        raise AdsCodecError(
+            f"{reader.what}: length field says {length} data bytes, payload has "
+            f"{reader.remaining}",
+            AdsReturnCode.DEVICE_INVALID_SIZE,
+        )
+    return reader.take(length)
+
+
+class _Payload:
+    """Base of every command payload: knows its command id and direction."""
+
+    command: ClassVar[AmsCommand]
+    is_response: ClassVar[bool]
+
+    def encode(self) -> bytes:
+        raise NotImplementedError
+
+    @classmethod
+    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
+        raise NotImplementedError
+
+
+class AdsRequest(_Payload):
+    """A request payload."""
+
+    is_response = False
+
+
+class AdsResponse(_Payload):
+    """A response payload; `result` is the service's ADS return code."""
+
+    is_response = True
+    result: int
+
+
+# -- ReadDeviceInfo (1) -----------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True)
+class ReadDeviceInfoRequest(AdsRequest):
+    command = AmsCommand.READ_DEVICE_INFO
+
+    def encode(self) -> bytes:
+        return b""
+
+    @classmethod
+    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
+        ByteReader(payload, "ReadDeviceInfo request").expect_end()
+        return cls()
+
+
+@dataclass(frozen=True, slots=True)
+class ReadDeviceInfoResponse(AdsResponse):
+    """Name (max 15 characters + NUL) and version of an ADS device."""
+
+    command = AmsCommand.READ_DEVICE_INFO
+    result: int = AdsReturnCode.NO_ERROR
+    major: int = 0
+    minor: int = 0
+    build: int = 0
+    name: str = ""
+
+    def encode(self) -> bytes:
+        name = encode_text(self.name)
+        if len(name) > DEVICE_NAME_SIZE:
+            raise AdsCodecError(
+                f"device name {self.name!r} is longer than {DEVICE_NAME_SIZE} bytes",
+                AdsReturnCode.DEVICE_INVALID_DATA,
+            )
+        return _pack("<IBBH", self.result, self.major, self.minor, self.build) + (
+            name.ljust(DEVICE_NAME_SIZE, b"\0")
+        )
+
+    @classmethod
+    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
+        reader = ByteReader(payload, "ReadDeviceInfo response")
+        if (result := _result_only(reader)) is not None:
+            return cls(result=result)
+        result = reader.u32()
+        major, minor, build = reader.u8(), reader.u8(), reader.u16()
+        name = decode_c_string(reader.take(DEVICE_NAME_SIZE))
+        reader.expect_end()
+        return cls(result, major, minor, build, name)
+
+
+# -- Read (2) ---------------------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True)
+class ReadRequest(AdsRequest):
+    command = AmsCommand.READ
+    index_group: int
+    index_offset: int
+    length: int
+
+    def encode(self) -> bytes:
+        return _pack("<III", self.index_group, self.index_offset, self.length)
+
+    @classmethod
+    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
+        reader = ByteReader(payload, "Read request")
+        request = cls(reader.u32(), reader.u32(), reader.u32())
+        reader.expect_end()
+        return request
+
+
+@dataclass(frozen=True, slots=True)
+class ReadResponse(AdsResponse):
+    command = AmsCommand.READ
+    result: int = AdsReturnCode.NO_ERROR
+    data: bytes = b""
+
+    def encode(self) -> bytes:
+        return _pack("<II", self.result, len(self.data)) + bytes(self.data)
+
+    @classmethod
+    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
+        reader = ByteReader(payload, "Read response")
+        if (result := _result_only(reader)) is not None:
+            return cls(result=result)
+        result = reader.u32()
+        return cls(result, _sized_data(reader, reader.u32()))
+
+
+# -- Write (3) --------------------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True)
+class WriteRequest(AdsRequest):
+    command = AmsCommand.WRITE
+    index_group: int
+    index_offset: int
+    data: bytes = b""
+
+    def encode(self) -> bytes:
+        header = _pack("<III", self.index_group, self.index_offset, len(self.data))
+        return header + bytes(self.data)
+
+    @classmethod
+    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
+        reader = ByteReader(payload, "Write request")
+        group, offset, length = reader.u32(), reader.u32(), reader.u32()
+        return cls(group, offset, _sized_data(reader, length))
+
+
+@dataclass(frozen=True, slots=True)
+class WriteResponse(AdsResponse):
+    command = AmsCommand.WRITE
+    result: int = AdsReturnCode.NO_ERROR
+
+    def encode(self) -> bytes:
+        return _pack("<I", self.result)
+
+    @classmethod
+    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
+        reader = ByteReader(payload, "Write response")
+        response = cls(reader.u32())
+        reader.expect_end()
+        return response
+
+
+# -- ReadState (4) ----------------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True)
+class ReadStateRequest(AdsRequest):
+    command = AmsCommand.READ_STATE
+
+    def encode(self) -> bytes:
+        return b""
+
+    @classmethod
+    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
+        ByteReader(payload, "ReadState request").expect_end()
+        return cls()
+
+
+@dataclass(frozen=True, slots=True)
+class ReadStateResponse(AdsResponse):
+    command = AmsCommand.READ_STATE
+    result: int = AdsReturnCode.NO_ERROR
+    ads_state: int = 0
+    device_state: int = 0
+
+    def encode(self) -> bytes:
+        return _pack("<IHH", self.result, self.ads_state, self.device_state)
+
+    @classmethod
+    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
+        reader = ByteReader(payload, "ReadState response")
+        if (result := _result_only(reader)) is not None:
+            return cls(result=result)
+        response = cls(reader.u32(), reader.u16(), reader.u16())
+        reader.expect_end()
+        return response
+
+
+# -- WriteControl (5) -------------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True)
+class WriteControlRequest(AdsRequest):
+    command = AmsCommand.WRITE_CONTROL
+    ads_state: int
+    device_state: int = 0
+    data: bytes = b""
+
+    def encode(self) -> bytes:
+        header = _pack("<HHI", self.ads_state, self.device_state, len(self.data))
+        return header + bytes(self.data)
+
+    @classmethod
+    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
+        reader = ByteReader(payload, "WriteControl request")
+        ads_state, device_state, length = reader.u16(), reader.u16(), reader.u32()
+        return cls(ads_state, device_state, _sized_data(reader, length))
+
+
+@dataclass(frozen=True, slots=True)
+class WriteControlResponse(AdsResponse):
+    command = AmsCommand.WRITE_CONTROL
+    result: int = AdsReturnCode.NO_ERROR
+
+    def encode(self) -> bytes:
+        return _pack("<I", self.result)
+
+    @classmethod
+    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
+        reader = ByteReader(payload, "WriteControl response")
+        response = cls(reader.u32())
+        reader.expect_end()
+        return response
+
+
+# -- AddDeviceNotification (6) ----------------------------------------------
+
+
+@dataclass(frozen=True, slots=True)
+class AddDeviceNotificationRequest(AdsRequest):
+    """Max delay and cycle time are in 100 ns units (ms x 10 000)."""
+
+    command = AmsCommand.ADD_DEVICE_NOTIFICATION
+    index_group: int
+    index_offset: int
+    length: int
+    transmission_mode: int
+    max_delay: int = 0
+    cycle_time: int = 0
+
+    def encode(self) -> bytes:
+        return _pack(
+            "<IIIIII",
+            self.index_group,
+            self.index_offset,
+            self.length,
+            self.transmission_mode,
+            self.max_delay,
+            self.cycle_time,
+        ) + bytes(NOTIFICATION_RESERVED_SIZE)
+
+    @classmethod
+    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
+        reader = ByteReader(payload, "AddDeviceNotification request")
+        request = cls(*(reader.u32() for _ in range(6)))
+        reader.take(NOTIFICATION_RESERVED_SIZE)
+        reader.expect_end()
+        return request
+
+
+@dataclass(frozen=True, slots=True)
+class AddDeviceNotificationResponse(AdsResponse):
+    command = AmsCommand.ADD_DEVICE_NOTIFICATION
+    result: int = AdsReturnCode.NO_ERROR
+    handle: int = 0
+
+    def encode(self) -> bytes:
+        return _pack("<II", self.result, self.handle)
+
+    @classmethod
+    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
+        reader = ByteReader(payload, "AddDeviceNotification response")
+        if (result := _result_only(reader)) is not None:
+            return cls(result=result)
+        response = cls(reader.u32(), reader.u32())
+        reader.expect_end()
+        return response
+
+
+# -- DeleteDeviceNotification (7) -------------------------------------------
+
+
+@dataclass(frozen=True, slots=True)
+class DeleteDeviceNotificationRequest(AdsRequest):
+    command = AmsCommand.DELETE_DEVICE_NOTIFICATION
+    handle: int
+
+    def encode(self) -> bytes:
+        return _pack("<I", self.handle)
+
+    @classmethod
+    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
+        reader = ByteReader(payload, "DeleteDeviceNotification request")
+        request = cls(reader.u32())
+        reader.expect_end()
+        return request
+
+
+@dataclass(frozen=True, slots=True)
+class DeleteDeviceNotificationResponse(AdsResponse):
+    command = AmsCommand.DELETE_DEVICE_NOTIFICATION
+    result: int = AdsReturnCode.NO_ERROR
+
+    def encode(self) -> bytes:
+        return _pack("<I", self.result)
+
+    @classmethod
+    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
+        reader = ByteReader(payload, "DeleteDeviceNotification response")
+        response = cls(reader.u32())
+        reader.expect_end()
+        return response
+
+
+# -- DeviceNotification (8, server -> client, never answered) ---------------
+
+
+@dataclass(frozen=True, slots=True)
+class NotificationSample:
+    """One notified value: the handle AddDeviceNotification returned + data."""
+
+    handle: int
+    data: bytes
+
+
+@dataclass(frozen=True, slots=True)
+class NotificationStamp:
+    """Samples sharing one FILETIME time stamp (100 ns since 1601, UTC)."""
+
+    timestamp: int
+    samples: tuple[NotificationSample, ...] = ()
+
+    @property
+    def moment(self) -> datetime:
+        return filetime_to_datetime(self.timestamp)
+
+
+@dataclass(frozen=True, slots=True)
+class DeviceNotification(AdsRequest):
+    """The notification stream: length u32 (bytes after this field), stamp
+    count u32, then per stamp FILETIME u64, sample count u32, and per sample
+    handle u32, size u32, data."""
+
+    command = AmsCommand.DEVICE_NOTIFICATION
+    stamps: tuple[NotificationStamp, ...] = field(default=())
+
+    def encode(self) -> bytes:
+        parts = [_pack("<I", len(self.stamps))]
+        for stamp in self.stamps:
+            parts.append(_pack("<QI", stamp.timestamp, len(stamp.samples)))
+            for sample in stamp.samples:
+                parts.append(_pack("<II", sample.handle, len(sample.data)))
+                parts.append(bytes(sample.data))
+        body = b"".join(parts)
+        return _pack("<I", len(body)) + body
+
+    @classmethod
+    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
+        reader = ByteReader(payload, "DeviceNotification")
+        length = reader.u32()
+        if length != reader.remaining:
+            raise AdsCodecError(
+                f"DeviceNotification: length field says {length} bytes follow, "
+                f"payload has {reader.remaining}",
+                AdsReturnCode.DEVICE_INVALID_SIZE,
+            )
+        stamp_count = reader.u32()
+        stamps: list[NotificationStamp] = []
+        for _ in range(stamp_count):
+            timestamp, sample_count = reader.u64(), reader.u32()
+            samples: list[NotificationSample] = []
+            for _ in range(sample_count):
+                handle, size = reader.u32(), reader.u32()
+                samples.append(NotificationSample(handle, reader.take(size)))
+            stamps.append(NotificationStamp(timestamp, tuple(samples)))
+        reader.expect_end()
+        return cls(tuple(stamps))
+
+
+# -- ReadWrite (9) ----------------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True)
+class ReadWriteRequest(AdsRequest):
+    command = AmsCommand.READ_WRITE
+    index_group: int
+    index_offset: int
+    read_length: int
+    data: bytes = b""
+
+    def encode(self) -> bytes:
+        header = _pack(
+            "<IIII",
+            self.index_group,
+            self.index_offset,
+            self.read_length,
+            len(self.data),
+        )
+        return header + bytes(self.data)
+
+    @classmethod
+    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
+        reader = ByteReader(payload, "ReadWrite request")
+        group, offset = reader.u32(), reader.u32()
+        read_length, write_length = reader.u32(), reader.u32()
+        return cls(group, offset, read_length, _sized_data(reader, write_length))
+
+
+@dataclass(frozen=True, slots=True)
+class ReadWriteResponse(AdsResponse):
+    command = AmsCommand.READ_WRITE
+    result: int = AdsReturnCode.NO_ERROR
+    data: bytes = b""
+
+    def encode(self) -> bytes:
+        return _pack("<II", self.result, len(self.data)) + bytes(self.data)
+
+    @classmethod
+    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
+        reader = ByteReader(payload, "ReadWrite response")
+        if (result := _result_only(reader)) is not None:
+            return cls(result=result)
+        result = reader.u32()
+        return cls(result, _sized_data(reader, reader.u32()))
+
+
+# -- dispatch ---------------------------------------------------------------
+
+REQUEST_TYPES: Final[dict[AmsCommand, type[AdsRequest]]] = {
+    cls.command: cls
+    for cls in (
+        ReadDeviceInfoRequest,
+        ReadRequest,
+        WriteRequest,
+        ReadStateRequest,
+        WriteControlRequest,
+        AddDeviceNotificationRequest,
+        DeleteDeviceNotificationRequest,
+        DeviceNotification,
+        ReadWriteRequest,
+    )
+}
+
+RESPONSE_TYPES: Final[dict[AmsCommand, type[AdsResponse]]] = {
+    cls.command: cls
+    for cls in (
+        ReadDeviceInfoResponse,
+        ReadResponse,
+        WriteResponse,
+        ReadStateResponse,
+        WriteControlResponse,
+        AddDeviceNotificationResponse,
+        DeleteDeviceNotificationResponse,
+        ReadWriteResponse,
+    )
+}
+
+
+def _lookup(table: dict[AmsCommand, type[_T]], command_id: int, what: str) -> type[_T]:
+    try:
+        return table[AmsCommand(command_id)]
+    except (ValueError, KeyError):
+        raise AdsCodecError(
+            f"no {what} for AMS command id {command_id}",
+            AdsReturnCode.DEVICE_SERVICE_NOT_SUPPORTED,
+        ) from None
+
+
+def decode_request(
+    command_id: int, payload: bytes | bytearray | memoryview
+) -> AdsRequest:
+    """Decode a request payload by command id (0x701 for unknown commands)."""
+    return _lookup(REQUEST_TYPES, command_id, "request").decode(payload)
+
+
+def decode_response(
+    command_id: int, payload: bytes | bytearray | memoryview
+) -> AdsResponse:
+    """Decode a response payload by command id (0x701 for unknown commands;
+    DeviceNotification has no response)."""
+    return _lookup(RESPONSE_TYPES, command_id, "response").decode(payload)
+
+
+def error_response(command_id: int, result: int) -> AdsResponse:
+    """The response a server sends when the service failed with `result`.
+
+    The full layout with zeroed fields (e.g. Read: result, length 0); AdsLib
+    reads the result first and stops on an error, so the rest is never used.
+    Raises 0x701 for commands without a response.
+    """
+    return _lookup(RESPONSE_TYPES, command_id, "response")(result=result)  # type: ignore[call-arg]

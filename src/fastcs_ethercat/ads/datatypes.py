@@ -1,0 +1,364 @@
+"""Data-type entries (0xF00E upload table): recursive, with array dimensions.
+
+Entry layout (facts file section 4): entry length, version, hash, type hash,
+size, offset (within a parent), ADS type id, flags (u32 each); name length,
+type length, comment length, array dimension count, sub-item count (u16
+each); name\\0, type\\0, comment\\0; per dimension (lower bound u32, element
+count u32); each sub-item as a full entry (recursive); then optional extras
+(type GUID, copy mask, method, attribute and enum infos, per the flags) and
+padding to the entry length. The extras are kept verbatim.
+"""
+
+from __future__ import annotations
+
+import struct
+from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Final, Self
+
+from fastcs_ethercat.ads.constants import AdsDataType, AdsReturnCode, DataTypeFlag
+from fastcs_ethercat.ads.errors import AdsCodecError
+from fastcs_ethercat.ads.symbols import data_type_or_int
+from fastcs_ethercat.ads.wire import ByteReader, decode_text, encode_text
+
+DATA_TYPE_ENTRY_HEADER_SIZE: Final = 42
+DATA_TYPE_ENTRY_ALIGNMENT: Final = 8
+"""Padding of each entry, as for symbol entries (unconfirmed for data types;
+readers rely only on the entry length)."""
+DATA_TYPE_ENTRY_VERSION: Final = 1
+
+_HEADER: Final = struct.Struct("<IIIIIIIIHHHHH")
+_DIMENSION: Final = struct.Struct("<iI")
+
+
+@dataclass(frozen=True, slots=True)
+class ArrayDimension:
+    """One array dimension: lower bound (signed, e.g. ARRAY [-1..1]) and count."""
+
+    lower_bound: int
+    element_count: int
+
+    @property
+    def upper_bound(self) -> int:
+        return self.lower_bound + self.element_count - 1
+
+
+@dataclass(frozen=True, slots=True)
+class AdsDataTypeEntry:
+    """A data type (top level) or a member of one (sub-item).
+
+    For a top-level entry `name` is the type's name and `type_name` its base
+    type (empty for a structure, the element type for an array). For a
+    sub-item `name` is the member name, `type_name` its type and `offset` its
+    byte offset within the parent.
+    """
+
+    name: str
+    type_name: str
+    size: int
+    data_type: AdsDataType | int = AdsDataType.BIGTYPE
+    flags: int = DataTypeFlag.DATA_TYPE
+    offset: int = 0
+    comment: str = ""
+    array_dimensions: tuple[ArrayDimension, ...] = ()
+    sub_items: tuple[AdsDataTypeEntry, ...] = ()
+    version: int = DATA_TYPE_ENTRY_VERSION
+    hash_value: int = 0
+    type_hash_value: int = 0
+    extra: bytes = b""
+    """Bytes after the sub-items up to the entry length, verbatim."""
+
+    def encode(self, alignment: int = DATA_TYPE_ENTRY_ALIGNMENT) -> bytes:
+        """The entry's bytes (sub-items included), zero-padded to `alignment`."""
+        name, type_name, comment = (
+            encode_text(self.name),
+            encode_text(self.type_name),
+            encode_text(self.comment),
+        )
+        try:
+            dimensions = b"".join(
+                _DIMENSION.pack(d.lower_bound, d.element_count)
+                for d in self.array_dimensions
+            )
+        except struct.error as error:
+            raise AdsCodecError(
+                f"data type {self.name!r}: array dimension out of range: {error}",
+                AdsReturnCode.DEVICE_INVALID_DATA,
+            ) from error
+        body = b"".join(
+            (
+                name + b"\0",
+                type_name + b"\0",
+                comment + b"\0",
+                dimensions,
+                *(item.encode(alignment) for item in self.sub_items),
+                bytes(self.extra),
+            )
+        )
+        length = DATA_TYPE_ENTRY_HEADER_SIZE + len(body)
+        if alignment > 1:
+            length = -(-length // alignment) * alignment
+        try:
+            header = _HEADER.pack(
+                length,
+                self.version,
+                self.hash_value,
+                self.type_hash_value,
+                self.size,
+                self.offset,
+                int(self.data_type),
+                int(self.flags),
+                len(name),
+                len(type_name),
+                len(comment),
+                len(self.array_dimensions),
+                len(self.sub_items),
+            )
+        except struct.error as error:
+            raise AdsCodecError(
+                f"data type {self.name!r}: field out of range: {error}",
+                AdsReturnCode.DEVICE_INVALID_DATA,
+            ) from error
+        return (header + body).ljust(length, b"\0")
+
+    @classmethod
+    def decode(cls, raw: bytes | bytearray | memoryview) -> Self:
+        """Decode one entry that fills `raw` exactly."""
+        entry, used = cls.decode_at(raw)
+        if used != len(raw):
+            raise AdsCodecError(
+                f"data type entry is {used} bytes, buffer has {len(raw)}",
+                AdsReturnCode.DEVICE_INVALID_SIZE,
+            )
+        return entry
+
+    @classmethod
+    def decode_at(
+        cls,
+        raw: bytes | bytearray | memoryview,
+        offset: int = 0,
+        limit: int | None = None,
+        depth: int = 0,
+    ) -> tuple[Self, int]:
+        """Decode the entry starting at `offset` that must end by `limit`
+        (default: the buffer's end); return it and its entry length."""
+        data = raw if isinstance(raw, bytes) else bytes(raw)
+        limit = len(data) if limit is None else min(limit, len(data))
+        if depth > _MAX_DEPTH:
+            raise AdsCodecError(
+                f"data type entry at offset {offset}: sub-items nested deeper "
+                f"than {_MAX_DEPTH}",
+                AdsReturnCode.DEVICE_INVALID_DATA,
+            )
+        what = f"data type entry at offset {offset}"
+        reader = ByteReader(data, what, start=offset, end=limit)
+        reader.take(DATA_TYPE_ENTRY_HEADER_SIZE)
+        (
+            entry_length,
+            version,
+            hash_value,
+            type_hash_value,
+            size,
+            member_offset,
+            data_type,
+            flags,
+            name_length,
+            type_length,
+            comment_length,
+            dimension_count,
+            sub_item_count,
+        ) = _HEADER.unpack_from(data, offset)
+        end = offset + entry_length
+        if entry_length < DATA_TYPE_ENTRY_HEADER_SIZE or end > limit:
+            raise AdsCodecError(
+                f"{what}: entry length {entry_length} does not fit the buffer "
+                f"({limit - offset} bytes left)",
+                AdsReturnCode.DEVICE_INVALID_SIZE,
+            )
+        # Bound the reader to this entry so nothing spills into the next one.
+        reader = ByteReader(data, what, start=reader.position, end=end)
+        name = _c_string(reader, name_length, "name")
+        type_name = _c_string(reader, type_length, "type name")
+        comment = _c_string(reader, comment_length, "comment")
+        dimensions = tuple(
+            ArrayDimension(*_DIMENSION.unpack(reader.take(_DIMENSION.size)))
+            for _ in range(dimension_count)
+        )
+        sub_items: list[AdsDataTypeEntry] = []
+        position = reader.position
+        for _ in range(sub_item_count):
+            item, used = AdsDataTypeEntry.decode_at(data, position, end, depth + 1)
+            sub_items.append(item)
+            position += used
+        extra = data[position:end]
+        entry = cls(
+            name=name,
+            type_name=type_name,
+            size=size,
+            data_type=data_type_or_int(data_type),
+            flags=flags,
+            offset=member_offset,
+            comment=comment,
+            array_dimensions=dimensions,
+            sub_items=tuple(sub_items),
+            version=version,
+            hash_value=hash_value,
+            type_hash_value=type_hash_value,
+            extra=extra,
+        )
+        return entry, entry_length
+
+
+_MAX_DEPTH: Final = 32
+
+
+def _c_string(reader: ByteReader, length: int, what: str) -> str:
+    text = reader.take(length)
+    if reader.take(1) != b"\0":
+        raise AdsCodecError(
+            f"{reader.what}: {what} of {length} bytes is not NUL-terminated",
+            AdsReturnCode.DEVICE_INVALID_DATA,
+        )
+    return decode_text(text)
+
+
+def iter_data_type_table(
+    table: bytes | bytearray | memoryview, count: int | None = None
+) -> Iterator[AdsDataTypeEntry]:
+    """Walk a 0xF00E table by entry lengths (stop after `count` if given)."""
+    data = bytes(table)
+    position = 0
+    seen = 0
+    while (count is None and position < len(data)) or (
+        count is not None and seen < count
+    ):
+        entry, used = AdsDataTypeEntry.decode_at(data, position)
+        yield entry
+        position += used
+        seen += 1
+
+
+def decode_data_type_table(
+    table: bytes | bytearray | memoryview, count: int | None = None
+) -> list[AdsDataTypeEntry]:
+    return list(iter_data_type_table(table, count))
+
+
+def encode_data_type_table(
+    entries: Sequence[AdsDataTypeEntry], alignment: int = DATA_TYPE_ENTRY_ALIGNMENT
+) -> bytes:
+    return b"".join(entry.encode(alignment) for entry in entries)
+
+
+# -- layouts ----------------------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True)
+class MemberLayout:
+    """A leaf member of a (nested) type, with its offset from the type start.
+
+    `path` is dotted from the top type ("Status.Underrange"); TwinCAT reaches
+    it as `<symbol>.<path>`. Members flagged BIT_VALUES count offset and size
+    in bits (`in_bits`); all others in bytes (unconfirmed for real TwinCAT).
+    """
+
+    path: str
+    type_name: str
+    data_type: AdsDataType | int
+    offset: int
+    size: int
+    in_bits: bool = False
+
+
+def flatten_members(
+    entry: AdsDataTypeEntry,
+    types: Mapping[str, AdsDataTypeEntry] | None = None,
+) -> list[MemberLayout]:
+    """Every leaf member of `entry` with absolute offsets.
+
+    A member whose own sub-items are not inlined is resolved through `types`
+    (the data-type table by name), as TwinCAT lists each type once.
+    """
+    found: list[MemberLayout] = []
+    _flatten(entry, types or {}, "", 0, found, 0)
+    return found
+
+
+def _flatten(
+    entry: AdsDataTypeEntry,
+    types: Mapping[str, AdsDataTypeEntry],
+    prefix: str,
+    base: int,
+    found: list[MemberLayout],
+    depth: int,
+) -> None:
+    if depth > _MAX_DEPTH:
+        raise AdsCodecError(
+            f"type {entry.name!r} nests deeper than {_MAX_DEPTH} (recursive?)",
+            AdsReturnCode.DEVICE_INVALID_DATA,
+        )
+    for item in entry.sub_items:
+        path = f"{prefix}{item.name}"
+        in_bits = bool(item.flags & DataTypeFlag.BIT_VALUES)
+        offset = base * (8 if in_bits else 1) + item.offset
+        nested = item if item.sub_items else types.get(item.type_name)
+        if nested is not None and nested.sub_items and not in_bits:
+            _flatten(nested, types, f"{path}.", offset, found, depth + 1)
+        else:
+            found.append(
+                MemberLayout(
+                    path, item.type_name, item.data_type, offset, item.size, in_bits
+                )
+            )
+
+
+@dataclass(frozen=True, slots=True)
+class MemberSpec:
+    """Input to `layout_structure`: one member's name, type and byte size."""
+
+    name: str
+    type_name: str
+    data_type: AdsDataType | int
+    size: int
+
+
+def layout_structure(
+    name: str,
+    members: Sequence[MemberSpec],
+    pack: int = 1,
+    comment: str = "",
+) -> AdsDataTypeEntry:
+    """A structure entry with members placed one after another.
+
+    Offsets align to min(member size, `pack`) bytes; pack=1 is the packed
+    layout of TwinCAT's I/O process-image types (e.g. Status u16 at +0,
+    Value INT at +2).
+    """
+    offset = 0
+    items: list[AdsDataTypeEntry] = []
+    largest = 1
+    for member in members:
+        alignment = max(1, min(member.size, pack))
+        largest = max(largest, alignment)
+        offset = -(-offset // alignment) * alignment
+        items.append(
+            AdsDataTypeEntry(
+                name=member.name,
+                type_name=member.type_name,
+                size=member.size,
+                data_type=member.data_type,
+                flags=DataTypeFlag.DATA_ITEM,
+                offset=offset,
+            )
+        )
+        offset += member.size
+    size = -(-offset // largest) * largest
+    return AdsDataTypeEntry(
+        name=name,
+        type_name="",
+        size=size,
+        data_type=AdsDataType.BIGTYPE,
+        flags=DataTypeFlag.DATA_TYPE,
+        comment=comment,
+        sub_items=tuple(items),
+    )

@@ -1,0 +1,296 @@
+"""Answers of the TwinCAT I/O server and the EtherCAT master (facts section 6).
+
+I/O server (system NetId, port 300): group 0x5000 offset 2 device count u32,
+offset 1 device ids (u16 count + u16 each); group 0x5000 + id offset 1 name,
+offset 5 the device's NetId, offset 7 device type u16.
+
+EtherCAT master (device NetId, port 0xFFFF): 0x03/0x100 master state u16,
+0x06 slave count u16, 0x07 slave addresses u16 x n, 0x09 (AL state u8, link
+state u8) per slave, 0x0C frame counters 5 x u32, 0x11 identity 4 x u32,
+0x12 CRC counters (4 x u32, one per port, offset = slave address).
+"""
+
+from __future__ import annotations
+
+import struct
+from collections.abc import Sequence
+from dataclasses import dataclass
+from enum import IntEnum, IntFlag
+from typing import Final, Self
+
+from fastcs_ethercat.ads.constants import AdsReturnCode
+from fastcs_ethercat.ads.errors import AdsCodecError
+from fastcs_ethercat.ads.netid import AmsNetId
+from fastcs_ethercat.ads.wire import ByteReader, decode_c_string, encode_text
+
+DEVICE_NAME_MAX: Final = 255
+
+
+class AlState(IntEnum):
+    """EtherCAT application-layer state (low nibble of the state byte)."""
+
+    INIT = 1
+    PREOP = 2
+    BOOT = 3
+    SAFEOP = 4
+    OP = 8
+
+
+class AlStateFlag(IntFlag):
+    """High-nibble flags of a slave's state byte."""
+
+    ERROR = 0x10
+    INVALID_VPRS = 0x20
+    """Invalid vendor id, product code, revision or serial number."""
+    INIT_COMMAND_ERROR = 0x40
+    DISABLED = 0x80
+
+
+class LinkState(IntFlag):
+    """A slave's link-state byte (0 = all fine)."""
+
+    NOT_PRESENT = 0x01
+    NO_COMMUNICATION = 0x02
+    MISSING_LINK = 0x04
+    ADDITIONAL_LINK = 0x08
+    PORT_A = 0x10
+    PORT_B = 0x20
+    PORT_C = 0x40
+    PORT_D = 0x80
+
+
+def _pack(fmt: str, *values: int) -> bytes:
+    try:
+        return struct.pack(fmt, *values)
+    except struct.error as error:
+        raise AdsCodecError(
+            f"EtherCAT field out of range: {error}", AdsReturnCode.DEVICE_INVALID_DATA
+        ) from error
+
+
+def _exact(raw: bytes | bytearray | memoryview, size: int, what: str) -> ByteReader:
+    if len(raw) != size:
+        raise AdsCodecError(
+            f"{what} is {size} bytes, got {len(raw)}", AdsReturnCode.DEVICE_INVALID_SIZE
+        )
+    return ByteReader(raw, what)
+
+
+def _u16_array(raw: bytes | bytearray | memoryview, what: str) -> tuple[int, ...]:
+    if len(raw) % 2:
+        raise AdsCodecError(
+            f"{what}: odd length {len(raw)} for u16 values",
+            AdsReturnCode.DEVICE_INVALID_SIZE,
+        )
+    reader = ByteReader(raw, what)
+    return tuple(reader.u16() for _ in range(len(raw) // 2))
+
+
+# -- I/O server -------------------------------------------------------------
+
+
+def encode_device_count(count: int) -> bytes:
+    return _pack("<I", count)
+
+
+def decode_device_count(raw: bytes | bytearray | memoryview) -> int:
+    return _exact(raw, 4, "device count").u32()
+
+
+def encode_device_ids(device_ids: Sequence[int]) -> bytes:
+    """u16 count, then one u16 id per device."""
+    return _pack(f"<H{len(device_ids)}H", len(device_ids), *device_ids)
+
+
+def decode_device_ids(raw: bytes | bytearray | memoryview) -> tuple[int, ...]:
+    """Ids after the u16 count; a buffer longer than the count says (a client
+    reading with a generous length) is accepted, a shorter one is not."""
+    reader = ByteReader(raw, "device ids")
+    count = reader.u16()
+    return tuple(reader.u16() for _ in range(count))
+
+
+def encode_device_name(name: str) -> bytes:
+    """The device name, NUL-terminated (at most 255 characters)."""
+    raw = encode_text(name)
+    if len(raw) > DEVICE_NAME_MAX:
+        raise AdsCodecError(
+            f"device name longer than {DEVICE_NAME_MAX} bytes",
+            AdsReturnCode.DEVICE_INVALID_DATA,
+        )
+    return raw + b"\0"
+
+
+def decode_device_name(raw: bytes | bytearray | memoryview) -> str:
+    """The name up to its first NUL (or the whole buffer without one)."""
+    return decode_c_string(bytes(raw))
+
+
+def encode_device_netid(netid: AmsNetId) -> bytes:
+    return netid.to_bytes()
+
+
+def decode_device_netid(raw: bytes | bytearray | memoryview) -> AmsNetId:
+    return AmsNetId.from_bytes(raw)
+
+
+def encode_device_type(device_type: int) -> bytes:
+    return _pack("<H", device_type)
+
+
+def decode_device_type(raw: bytes | bytearray | memoryview) -> int:
+    return _exact(raw, 2, "device type").u16()
+
+
+# -- EtherCAT master --------------------------------------------------------
+
+
+def encode_master_state(state: int) -> bytes:
+    return _pack("<H", state)
+
+
+def decode_master_state(raw: bytes | bytearray | memoryview) -> int:
+    return _exact(raw, 2, "master state").u16()
+
+
+def encode_slave_count(count: int) -> bytes:
+    return _pack("<H", count)
+
+
+def decode_slave_count(raw: bytes | bytearray | memoryview) -> int:
+    return _exact(raw, 2, "slave count").u16()
+
+
+def encode_slave_addresses(addresses: Sequence[int]) -> bytes:
+    return _pack(f"<{len(addresses)}H", *addresses)
+
+
+def decode_slave_addresses(raw: bytes | bytearray | memoryview) -> tuple[int, ...]:
+    return _u16_array(raw, "slave addresses")
+
+
+@dataclass(frozen=True, slots=True)
+class SlaveState:
+    """A slave's raw state byte and link-state byte."""
+
+    state: int
+    link: int = 0
+
+    @classmethod
+    def of(
+        cls,
+        al_state: AlState,
+        flags: AlStateFlag | int = 0,
+        link: LinkState | int = 0,
+    ) -> Self:
+        return cls(int(al_state) | int(flags), int(link))
+
+    @property
+    def al_state(self) -> AlState | int:
+        """The low nibble: INIT, PREOP, BOOT, SAFEOP or OP."""
+        try:
+            return AlState(self.state & 0x0F)
+        except ValueError:
+            return self.state & 0x0F
+
+    @property
+    def flags(self) -> AlStateFlag:
+        return AlStateFlag(self.state & 0xF0)
+
+    @property
+    def link_state(self) -> LinkState:
+        return LinkState(self.link)
+
+    def encode(self) -> bytes:
+        return _pack("<BB", self.state, self.link)
+
+    @classmethod
+    def decode(cls, raw: bytes | bytearray | memoryview) -> Self:
+        reader = _exact(raw, 2, "slave state")
+        return cls(reader.u8(), reader.u8())
+
+
+def encode_slave_states(states: Sequence[SlaveState]) -> bytes:
+    """Group 0x09 offset 0: one (state, link) pair per slave, in chain order."""
+    return b"".join(state.encode() for state in states)
+
+
+def decode_slave_states(raw: bytes | bytearray | memoryview) -> tuple[SlaveState, ...]:
+    data = bytes(raw)
+    if len(data) % 2:
+        raise AdsCodecError(
+            f"slave states: odd length {len(data)}", AdsReturnCode.DEVICE_INVALID_SIZE
+        )
+    return tuple(SlaveState(data[i], data[i + 1]) for i in range(0, len(data), 2))
+
+
+@dataclass(frozen=True, slots=True)
+class SlaveIdentity:
+    """CANopen identity (object 0x1018) of a slave: 4 x u32."""
+
+    vendor_id: int
+    product_code: int
+    revision: int
+    serial_number: int = 0
+
+    def encode(self) -> bytes:
+        return _pack(
+            "<IIII",
+            self.vendor_id,
+            self.product_code,
+            self.revision,
+            self.serial_number,
+        )
+
+    @classmethod
+    def decode(cls, raw: bytes | bytearray | memoryview) -> Self:
+        reader = _exact(raw, 16, "slave identity")
+        return cls(reader.u32(), reader.u32(), reader.u32(), reader.u32())
+
+
+@dataclass(frozen=True, slots=True)
+class FrameCounters:
+    """Group 0x0C: five u32 counters of the master's frames.
+
+    Field meanings follow catio's reading (a time base, then cyclic and
+    acyclic frames sent and lost) and are unconfirmed.
+    """
+
+    time: int = 0
+    cyclic_sent: int = 0
+    cyclic_lost: int = 0
+    acyclic_sent: int = 0
+    acyclic_lost: int = 0
+
+    def encode(self) -> bytes:
+        return _pack(
+            "<5I",
+            self.time,
+            self.cyclic_sent,
+            self.cyclic_lost,
+            self.acyclic_sent,
+            self.acyclic_lost,
+        )
+
+    @classmethod
+    def decode(cls, raw: bytes | bytearray | memoryview) -> Self:
+        reader = _exact(raw, 20, "frame counters")
+        return cls(*(reader.u32() for _ in range(5)))
+
+
+@dataclass(frozen=True, slots=True)
+class CrcCounters:
+    """Group 0x12 (offset = slave address): CRC error counters per port."""
+
+    port_a: int = 0
+    port_b: int = 0
+    port_c: int = 0
+    port_d: int = 0
+
+    def encode(self) -> bytes:
+        return _pack("<4I", self.port_a, self.port_b, self.port_c, self.port_d)
+
+    @classmethod
+    def decode(cls, raw: bytes | bytearray | memoryview) -> Self:
+        reader = _exact(raw, 16, "CRC counters")
+        return cls(*(reader.u32() for _ in range(4)))

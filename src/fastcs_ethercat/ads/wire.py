@@ -1,0 +1,122 @@
+"""Little-endian reading and writing helpers shared by the codec modules.
+
+`ByteReader` walks a buffer with a cursor and raises `AdsCodecError` (never
+`struct.error` or `IndexError`) when the buffer is too short, so every decoder
+built on it keeps the codec's promise of a single exception type.
+"""
+
+from __future__ import annotations
+
+import struct
+from typing import Final
+
+from fastcs_ethercat.ads.constants import AdsReturnCode
+from fastcs_ethercat.ads.errors import AdsCodecError
+
+U8: Final = struct.Struct("<B")
+U16: Final = struct.Struct("<H")
+U32: Final = struct.Struct("<I")
+U64: Final = struct.Struct("<Q")
+
+STRING_ENCODING: Final = "windows-1252"
+"""TwinCAT writes names, type names and comments in the Windows code page."""
+
+
+def encode_text(text: str) -> bytes:
+    """Encode a TwinCAT name or comment; unencodable characters are a codec error."""
+    try:
+        return text.encode(STRING_ENCODING)
+    except UnicodeEncodeError as error:
+        raise AdsCodecError(
+            f"text {text!r} is not representable in {STRING_ENCODING}",
+            AdsReturnCode.DEVICE_INVALID_DATA,
+        ) from error
+
+
+def decode_text(raw: bytes) -> str:
+    """Decode a TwinCAT name; bytes undefined in cp1252 map to U+FFFD."""
+    return raw.decode(STRING_ENCODING, errors="replace")
+
+
+def decode_c_string(raw: bytes) -> str:
+    """Decode a NUL-padded fixed-size char field up to its first NUL."""
+    return decode_text(raw.split(b"\0", 1)[0])
+
+
+class ByteReader:
+    """A cursor over a bytes-like buffer that reads little-endian fields."""
+
+    __slots__ = ("_buffer", "_end", "_position", "what")
+
+    def __init__(
+        self,
+        buffer: bytes | bytearray | memoryview,
+        what: str,
+        start: int = 0,
+        end: int | None = None,
+    ) -> None:
+        self._buffer = buffer if isinstance(buffer, bytes) else bytes(buffer)
+        self._position = start
+        self._end = len(self._buffer) if end is None else min(end, len(self._buffer))
+        self.what = what
+
+    @property
+    def position(self) -> int:
+        return self._position
+
+    @property
+    def remaining(self) -> int:
+        return self._end - self._position
+
+    def take(self, count: int) -> bytes:
+        """Return the next `count` bytes or raise if fewer are left."""
+        if count < 0 or count > self.remaining:
+            raise AdsCodecError(
+                f"{self.what}: need {count} bytes at offset {self._position}, "
+                f"only {self.remaining} left",
+                AdsReturnCode.DEVICE_INVALID_SIZE,
+            )
+        start = self._position
+        self._position += count
+        return self._buffer[start : self._position]
+
+    def u8(self) -> int:
+        return U8.unpack(self.take(1))[0]
+
+    def u16(self) -> int:
+        return U16.unpack(self.take(2))[0]
+
+    def u32(self) -> int:
+        return U32.unpack(self.take(4))[0]
+
+    def u64(self) -> int:
+        return U64.unpack(self.take(8))[0]
+
+    def rest(self) -> bytes:
+        return self.take(self.remaining)
+
+    def expect_end(self) -> None:
+        """Raise if bytes are left over: a payload longer than its layout."""
+        if self.remaining:
+            raise AdsCodecError(
+                f"{self.what}: {self.remaining} unexpected trailing bytes",
+                AdsReturnCode.DEVICE_INVALID_SIZE,
+            )
+
+
+def check_u32(value: int, what: str) -> int:
+    """Reject values that do not fit an unsigned 32-bit field."""
+    if not 0 <= value <= 0xFFFF_FFFF:
+        raise AdsCodecError(
+            f"{what}={value} does not fit in u32", AdsReturnCode.DEVICE_INVALID_DATA
+        )
+    return value
+
+
+def check_u16(value: int, what: str) -> int:
+    """Reject values that do not fit an unsigned 16-bit field."""
+    if not 0 <= value <= 0xFFFF:
+        raise AdsCodecError(
+            f"{what}={value} does not fit in u16", AdsReturnCode.DEVICE_INVALID_DATA
+        )
+    return value

@@ -1,0 +1,62 @@
+"""Beckhoff ESI XML -> typed device descriptions.
+
+Typical use::
+
+    catalog = build_catalog("../shared/esi")      # cheap, cached listing
+    catalog.revisions("EL3104")                    # every revision
+    device = catalog.load("EL3104")                # newest revision, full parse
+    device.pdo_groups, device.default_group
+
+`model` holds the dataclasses (the stable contract), `catalog` the listing and
+lookup, `files` the per-document parser, `groups` the PDO-group rules.
+"""
+
+from .catalog import EsiCatalog, EsiParseResult, build_catalog, load_device, parse_all
+from .channels import channel_template
+from .files import EsiFileResult, parse_document, parse_file
+from .model import (
+    CatalogEntry,
+    EsiCoeObject,
+    EsiCoeSubItem,
+    EsiDataType,
+    EsiDataTypeSubItem,
+    EsiDcOpMode,
+    EsiDcOpModePdo,
+    EsiDevice,
+    EsiEntry,
+    EsiEnumItem,
+    EsiHideType,
+    EsiOversampling,
+    EsiPdo,
+    EsiPdoGroup,
+    EsiSyncManager,
+    parse_esi_int,
+)
+
+__all__ = [
+    "CatalogEntry",
+    "EsiCatalog",
+    "EsiCoeObject",
+    "EsiCoeSubItem",
+    "EsiDataType",
+    "EsiDataTypeSubItem",
+    "EsiDcOpMode",
+    "EsiDcOpModePdo",
+    "EsiDevice",
+    "EsiEntry",
+    "EsiEnumItem",
+    "EsiFileResult",
+    "EsiHideType",
+    "EsiOversampling",
+    "EsiParseResult",
+    "EsiPdo",
+    "EsiPdoGroup",
+    "EsiSyncManager",
+    "build_catalog",
+    "channel_template",
+    "load_device",
+    "parse_all",
+    "parse_document",
+    "parse_esi_int",
+    "parse_file",
+]

@@ -1,0 +1,391 @@
+"""The catalog: which terminal types and revisions a set of ESI files holds.
+
+`build_catalog` lists every device cheaply (identity, names, group type,
+whether it has PDO groups, file and line) and caches the rows by file content
+(see `cache`); `load_device` then fully parses one device, `parse_all` every
+device.
+
+Revisions: `find(type)` gives the newest revision, `find(type, rev)` an exact
+one, `revisions(type)` all of them. When the same type and revision appear
+in several files (EL3602 #x00100000 is in both EL3xxx.xml copies), the copy
+from the file holding the newest revision of that type wins (the more recent
+download); ties go to the first file in sorted order.
+"""
+
+from __future__ import annotations
+
+from collections import OrderedDict
+from collections.abc import Iterable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from fastcs_ethercat.errors import UserError
+
+from .cache import CatalogCache, sha256_of
+from .device import describe, name_of
+from .files import (
+    EsiFileResult,
+    device_elements,
+    device_error,
+    identity_or_none,
+    parse_device_element,
+    parse_document,
+    read_root,
+    vendor_id_of,
+)
+from .groups import has_alternatives
+from .model import CatalogEntry, EsiDevice
+from .sources import EsiDocument, SourceArg, find_documents
+from .xmltext import Element, EsiFormatError, fail, text_of
+
+_Row = list[Any]
+"""Cached form of a CatalogEntry (no source): see `_row` / `_entry`."""
+
+
+def _row(device: Element, position: int, vendor_id: int) -> _Row | None:
+    identity = identity_or_none(device)
+    if identity is None:
+        return None
+    type_name, product_code, revision = identity
+    names: dict[int, str] = {}
+    group_type = ""
+    for child in device:
+        if child.tag == "Name":
+            name_of(child, names)
+        elif child.tag == "GroupType":
+            group_type = text_of(child)
+    return [
+        type_name,
+        revision,
+        product_code,
+        vendor_id,
+        group_type,
+        has_alternatives(device),
+        describe(names, type_name),
+        device.sourceline or 0,
+        position,
+    ]
+
+
+def _entry(row: _Row, source: str) -> CatalogEntry:
+    (
+        type_name,
+        revision,
+        product_code,
+        vendor_id,
+        group_type,
+        groups,
+        text,
+        line,
+        pos,
+    ) = row
+    return CatalogEntry(
+        type_name=type_name,
+        revision=revision,
+        product_code=product_code,
+        vendor_id=vendor_id,
+        group_type=group_type,
+        has_pdo_groups=groups,
+        description=text,
+        source=source,
+        line=line,
+        device_position=pos,
+    )
+
+
+def scan_document(data: bytes, name: str) -> tuple[list[_Row], list[str]]:
+    """Catalog rows and one-line warnings of one document (never raises)."""
+    try:
+        root = read_root(data, name)
+        vendor_id = vendor_id_of(root, name)
+    except UserError as error:
+        return [], [str(error)]
+    rows: list[_Row] = []
+    warnings: list[str] = []
+    for position, device in enumerate(device_elements(root)):
+        try:
+            row = _row(device, position, vendor_id)
+            if row is None:
+                raise fail(device, "<Type> lacks a name or ProductCode")
+        except EsiFormatError as error:
+            warnings.append(str(device_error(error, device, position, name)))
+            continue
+        rows.append(row)
+    return rows, warnings
+
+
+class EsiCatalog:
+    """Devices (type + revision) of a set of ESI documents, for listing."""
+
+    def __init__(
+        self,
+        entries: Iterable[CatalogEntry],
+        warnings: Iterable[str] = (),
+        documents: Iterable[EsiDocument] = (),
+    ) -> None:
+        self.entries: tuple[CatalogEntry, ...] = tuple(entries)
+        self.warnings: tuple[str, ...] = tuple(warnings)
+        self._documents = {document.name: document for document in documents}
+        self._roots: OrderedDict[str, Element] = OrderedDict()
+        by_type: dict[str, list[CatalogEntry]] = {}
+        for entry in self.entries:
+            by_type.setdefault(entry.type_name, []).append(entry)
+        self._by_type = {name: _preferred(found) for name, found in by_type.items()}
+        self._folded = {name.casefold(): name for name in self._by_type}
+
+    def __len__(self) -> int:
+        return len(self.entries)
+
+    def type_names(self) -> list[str]:
+        """Every terminal type, sorted."""
+        return sorted(self._by_type)
+
+    def _type(self, type_name: str) -> str:
+        if type_name in self._by_type:
+            return type_name
+        folded = self._folded.get(type_name.casefold())
+        if folded is None:
+            raise UserError(
+                f"no ESI description of terminal type {type_name!r} "
+                f"among {len(self.entries)} devices",
+                where=type_name,
+            )
+        return folded
+
+    def revisions(self, type_name: str) -> tuple[CatalogEntry, ...]:
+        """One entry per revision of a type, oldest first."""
+        return self._by_type[self._type(type_name)]
+
+    def find(self, type_name: str, revision: int | None = None) -> CatalogEntry:
+        """Newest revision of a type, or exactly `revision`."""
+        found = self.revisions(type_name)
+        if revision is None:
+            return found[-1]
+        for entry in found:
+            if entry.revision == revision:
+                return entry
+        known = ", ".join(f"#x{entry.revision:08x}" for entry in found)
+        raise UserError(
+            f"{found[0].type_name} has no revision #x{revision:08x} (known: {known})",
+            where=found[0].type_name,
+        )
+
+    def newest(self) -> tuple[CatalogEntry, ...]:
+        """The newest revision of every type, sorted by type name."""
+        return tuple(self._by_type[name][-1] for name in self.type_names())
+
+    def _root(self, source: str) -> Element:
+        """Parsed document, keeping the last two (a device is often followed
+        by its siblings from the same file)."""
+        if source in self._roots:
+            self._roots.move_to_end(source)
+            return self._roots[source]
+        document = self._documents.get(source) or EsiDocument(
+            name=source, container=Path(source)
+        )
+        root = read_root(document.read(), source)
+        self._roots[source] = root
+        while len(self._roots) > 2:
+            self._roots.popitem(last=False)
+        return root
+
+    def load(self, type_name: str, revision: int | None = None) -> EsiDevice:
+        """Fully parse one device (newest revision unless `revision` given)."""
+        entry = self.find(type_name, revision)
+        root = self._root(entry.source)
+        devices = device_elements(root)
+        position = entry.device_position
+        if not (position < len(devices) and _matches(devices[position], entry)):
+            position = next(
+                (i for i, device in enumerate(devices) if _matches(device, entry)), -1
+            )
+            if position < 0:
+                raise UserError(
+                    f"device {entry.type_name} revision #x{entry.revision:08x} "
+                    "is no longer in the file (rebuild the catalog)",
+                    path=entry.source,
+                    where=str(entry.line),
+                )
+        return parse_device_element(
+            devices[position],
+            position,
+            vendor_id=vendor_id_of(root, entry.source),
+            source=entry.source,
+        )
+
+
+def _matches(device: Element, entry: CatalogEntry) -> bool:
+    identity = identity_or_none(device)
+    return (
+        identity is not None
+        and identity[0] == entry.type_name
+        and (identity[2] == entry.revision)
+    )
+
+
+def _preferred(entries: list[CatalogEntry]) -> tuple[CatalogEntry, ...]:
+    """One entry per revision (see the module docstring), oldest first."""
+    newest_in_file: dict[str, int] = {}
+    for entry in entries:
+        newest_in_file[entry.source] = max(
+            newest_in_file.get(entry.source, entry.revision), entry.revision
+        )
+    chosen: dict[int, CatalogEntry] = {}
+    for entry in entries:
+        current = chosen.get(entry.revision)
+        if current is None or (
+            newest_in_file[entry.source] > newest_in_file[current.source]
+        ):
+            chosen[entry.revision] = entry
+    return tuple(chosen[revision] for revision in sorted(chosen))
+
+
+_Scan = tuple[list[_Row], list[str]]
+
+
+_ROW_TYPES = (str, int, int, int, str, bool, str, int, int)
+
+
+def _valid_row(row: object) -> bool:
+    """A cached row has the shape `_row` writes (else the cache is stale)."""
+    return (
+        isinstance(row, list)
+        and len(row) == len(_ROW_TYPES)
+        and all(isinstance(v, t) for v, t in zip(row, _ROW_TYPES, strict=True))
+    )
+
+
+def _from_cache(
+    cache: CatalogCache, sha: str, documents: list[EsiDocument]
+) -> dict[str, _Scan] | None:
+    cached = cache.load(sha)
+    if cached is None:
+        return None
+    results: dict[str, _Scan] = {}
+    for document in documents:
+        value = cached.get(document.member or "")
+        if not (isinstance(value, list) and len(value) == 2):
+            return None
+        rows, warnings = value
+        if not (
+            isinstance(rows, list)
+            and isinstance(warnings, list)
+            and all(_valid_row(row) for row in rows)
+            and all(isinstance(warning, str) for warning in warnings)
+        ):
+            return None
+        results[document.name] = (rows, warnings)
+    return results
+
+
+def _scan_container(
+    container: Path, documents: list[EsiDocument], cache: CatalogCache | None
+) -> dict[str, _Scan]:
+    """Rows per document of one file on disk, through the cache if given."""
+    if cache is not None:
+        sha = cache.known_sha(container)
+        if sha is not None:
+            cached = _from_cache(cache, sha, documents)
+            if cached is not None:
+                return cached
+    try:
+        data = container.read_bytes()
+    except OSError as error:
+        message = f"cannot read ESI file: {error.strerror or error}"
+        return {d.name: ([], [str(UserError(message, path=d.name))]) for d in documents}
+    sha = sha256_of(data)
+    if cache is not None:
+        cached = _from_cache(cache, sha, documents)
+        if cached is not None:
+            cache.remember(container, sha)
+            return cached
+    results: dict[str, _Scan] = {}
+    for document in documents:
+        try:
+            content = document.read_from(data)
+        except UserError as error:
+            results[document.name] = ([], [str(error)])
+        else:
+            results[document.name] = scan_document(content, document.name)
+    if cache is not None:
+        cache.store(sha, {(d.member or ""): list(results[d.name]) for d in documents})
+        cache.remember(container, sha)
+    return results
+
+
+def build_catalog(
+    source: SourceArg, *, use_cache: bool = True, cache_dir: Path | None = None
+) -> EsiCatalog:
+    """List every device of the ESI documents under `source`.
+
+    `source`: a directory (searched recursively for *.xml and *.zip), a file,
+    a `Beckhoff_EtherCAT_XML.zip`, or a list of those. Unreadable documents
+    and broken devices become `warnings` (one line each, naming file, line
+    and device); the rest is listed.
+    """
+    documents = find_documents(source)
+    cache = CatalogCache(cache_dir) if use_cache else None
+    by_container: dict[Path, list[EsiDocument]] = {}
+    for document in documents:
+        by_container.setdefault(document.container, []).append(document)
+    entries: list[CatalogEntry] = []
+    warnings: list[str] = []
+    for container, members in by_container.items():
+        scanned = _scan_container(container, members, cache)
+        for document in members:
+            rows, found = scanned[document.name]
+            entries.extend(_entry(row, document.name) for row in rows)
+            warnings.extend(found)
+    if cache is not None:
+        cache.flush()
+    return EsiCatalog(entries, warnings, documents)
+
+
+def load_device(
+    catalog: EsiCatalog, type_name: str, revision: int | None = None
+) -> EsiDevice:
+    """Fully parse one device of a catalog (newest revision by default)."""
+    return catalog.load(type_name, revision)
+
+
+@dataclass(frozen=True, slots=True)
+class EsiParseResult:
+    """Every device of a set of documents, and what could not be parsed."""
+
+    devices: tuple[EsiDevice, ...]
+    warnings: tuple[UserError, ...]
+    files: tuple[EsiFileResult, ...]
+
+
+def parse_all(source: SourceArg, *, strict: bool = False) -> EsiParseResult:
+    """Fully parse every device under `source` (see `build_catalog`).
+
+    Non-strict: unreadable documents and broken devices become warnings.
+    Strict: the first one is raised.
+    """
+    devices: list[EsiDevice] = []
+    warnings: list[UserError] = []
+    files: list[EsiFileResult] = []
+    for document in find_documents(source):
+        try:
+            result = parse_document(document.read(), document.name, strict=strict)
+        except UserError as error:
+            if strict:
+                raise
+            warnings.append(error)
+            continue
+        files.append(result)
+        devices.extend(result.devices)
+        warnings.extend(result.warnings)
+    return EsiParseResult(tuple(devices), tuple(warnings), tuple(files))
+
+
+__all__ = [
+    "EsiCatalog",
+    "EsiParseResult",
+    "build_catalog",
+    "load_device",
+    "parse_all",
+    "scan_document",
+]

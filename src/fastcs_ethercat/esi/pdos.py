@@ -1,0 +1,97 @@
+"""`<TxPdo>` / `<RxPdo>` elements -> `EsiPdo` with its `EsiEntry`s.
+
+Quirks of the real files handled here: gap entries with `<Index>#x0</Index>`
+and no SubIndex/Name/DataType, hex in any case and width (`#x1A00`,
+`#x1a00`, `#x98`), PDOs on Sm 0 (devices without mailbox), oversampling
+attributes (`OSFac`, `OSMin`, `OSMax`, `OSIndexInc`), names with stray
+surrounding spaces (stripped).
+"""
+
+from __future__ import annotations
+
+from .channels import channel_template
+from .model import EsiEntry, EsiPdo, PdoDirection
+from .xmltext import Element, bool_attr, fail, int_attr, int_of, text_of
+
+PDO_TAGS: dict[str, PdoDirection] = {"TxPdo": "tx", "RxPdo": "rx"}
+
+
+def parse_entry(element: Element) -> EsiEntry:
+    """One `<Entry>`; Index and BitLen are required, the rest optional."""
+    index: int | None = None
+    subindex = 0
+    bit_len: int | None = None
+    name = ""
+    data_type: str | None = None
+    comment: str | None = None
+    dscale: str | None = None
+    for child in element:
+        tag = child.tag
+        if tag == "Index":
+            index = int_of(child, "entry Index")
+        elif tag == "SubIndex":
+            subindex = int_of(child, "entry SubIndex")
+        elif tag == "BitLen":
+            bit_len = int_of(child, "entry BitLen")
+        elif tag == "Name":
+            name = text_of(child)
+        elif tag == "DataType":
+            data_type = text_of(child) or None
+            dscale = child.get("DScale")
+        elif tag == "Comment":
+            comment = text_of(child) or None
+    if index is None:
+        raise fail(element, f"PDO entry {name!r} has no <Index>")
+    if bit_len is None:
+        raise fail(element, f"PDO entry {name!r} has no <BitLen>")
+    return EsiEntry(
+        index=index,
+        subindex=subindex,
+        bit_len=bit_len,
+        name=name,
+        data_type=data_type,
+        comment=comment,
+        dscale=dscale,
+    )
+
+
+def parse_pdo(element: Element, direction: PdoDirection) -> EsiPdo:
+    """One PDO element with its entries and exclusions."""
+    index: int | None = None
+    name: str | None = None
+    excludes: list[int] = []
+    entries: list[EsiEntry] = []
+    for child in element:
+        tag = child.tag
+        if tag == "Entry":
+            entries.append(parse_entry(child))
+        elif tag == "Index":
+            index = int_of(child, "PDO Index")
+        elif tag == "Name":
+            if name is None:
+                name = text_of(child)
+        elif tag == "Exclude":
+            excludes.append(int_of(child, "PDO Exclude"))
+    if index is None:
+        raise fail(element, f"<{element.tag}> has no <Index>")
+    if name is None:
+        raise fail(element, f"PDO #x{index:04x} has no <Name>")
+    channel, template = channel_template(name)
+    return EsiPdo(
+        index=index,
+        name=name,
+        direction=direction,
+        sm=int_attr(element, "Sm"),
+        fixed=bool_attr(element, "Fixed"),
+        mandatory=bool_attr(element, "Mandatory"),
+        excludes=tuple(excludes),
+        entries=tuple(entries),
+        channel=channel,
+        channel_template=template,
+        virtual=bool_attr(element, "Virtual"),
+        su=int_attr(element, "Su"),
+        os_factor=int_attr(element, "OSFac"),
+        os_min=int_attr(element, "OSMin"),
+        os_max=int_attr(element, "OSMax"),
+        os_index_inc=int_attr(element, "OSIndexInc"),
+    )

@@ -1,0 +1,151 @@
+"""One terminal YAML file <-> validated `TerminalType`s, with precise errors.
+
+Two layouts are read: ours (the file's top-level keys are terminal types)
+and catio-terminals' single-file layout (`terminal_types:` holding many
+types, converted by `catio_compat`). Only ours is written. Every problem a
+user can make in a file becomes one `UserError` naming the file, the line
+and the key path.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from pydantic import ValidationError
+from pydantic_core import ErrorDetails
+
+from fastcs_ethercat.errors import UserError
+from fastcs_ethercat.terminals.checks import check_terminal, terminal_problems
+from fastcs_ethercat.terminals.model import TerminalType
+from fastcs_ethercat.terminals.yaml_io import (
+    Loc,
+    LocatedYaml,
+    dump_yaml,
+    format_loc,
+    parse_yaml,
+)
+
+CATIO_LAYOUT_KEY = "terminal_types"
+_TYPE_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.+-]*$")
+
+
+def read_terminal_file(path: Path | str) -> dict[str, TerminalType]:
+    """Every terminal type in one file (either layout), validated."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise UserError("no such file", path=path) from None
+    except (OSError, UnicodeDecodeError) as error:
+        raise UserError(f"cannot read: {error}", path=path) from None
+    return parse_terminal_text(text, path)
+
+
+def parse_terminal_text(text: str, path: Path | str) -> dict[str, TerminalType]:
+    """Terminal types from YAML text; `path` only names the source in errors."""
+    located = parse_yaml(text, path)
+    if not isinstance(located.data, dict):
+        raise UserError(
+            "expected a mapping of terminal type names to terminal descriptions",
+            path=path,
+            where=located.where(()),
+        )
+    if CATIO_LAYOUT_KEY in located.data:
+        from fastcs_ethercat.terminals.catio_compat import read_catio_layout
+
+        return read_catio_layout(located)
+    return validate_terminals(located, located.data, ())
+
+
+def validate_terminals(
+    located: LocatedYaml, mapping: Mapping[Any, Any], prefix: Loc
+) -> dict[str, TerminalType]:
+    """Validate `{type name: description}` found at `prefix` in `located`."""
+    terminals: dict[str, TerminalType] = {}
+    for name, body in mapping.items():
+        loc: Loc = (*prefix, name)
+        if not isinstance(name, str) or not _TYPE_NAME.match(name):
+            raise UserError(
+                f"{name!r} is not a terminal type name (like EL3104 or EL3356-0010)",
+                path=located.path,
+                where=located.where(loc),
+            )
+        terminals[name] = validate_terminal(located, body, loc)
+    return terminals
+
+
+def validate_terminal(located: LocatedYaml, body: Any, loc: Loc) -> TerminalType:
+    """One terminal description: field types first, then consistency rules."""
+    try:
+        terminal = TerminalType.model_validate(body)
+    except ValidationError as error:
+        raise validation_error(located, loc, error) from None
+    problems = terminal_problems(terminal)
+    if problems:
+        first = problems[0]
+        raise located_error(located, (*loc, *first.loc), first.message, len(problems))
+    return terminal
+
+
+def validation_error(
+    located: LocatedYaml, loc: Loc, error: ValidationError
+) -> UserError:
+    """The first pydantic error as one line at its place in the file."""
+    details = error.errors()
+    first = details[0]
+    error_loc, message = _friendly(first)
+    return located_error(located, (*loc, *error_loc), message, len(details))
+
+
+def located_error(
+    located: LocatedYaml, loc: Loc, message: str, count: int
+) -> UserError:
+    """UserError at `loc`'s line, prefixed with the key path."""
+    more = ""
+    if count > 1:
+        more = f" (and {count - 1} more problem{'s' if count > 2 else ''})"
+    return UserError(
+        f"{format_loc(loc)}: {message}{more}",
+        path=located.path,
+        where=located.where(loc),
+    )
+
+
+def _friendly(detail: ErrorDetails) -> tuple[Loc, str]:
+    loc: Loc = tuple(detail["loc"])
+    kind = detail["type"]
+    if kind == "extra_forbidden":
+        return loc, f"unknown key {loc[-1]!r}"
+    if kind == "missing":
+        return loc[:-1], f"missing key {loc[-1]!r}"
+    value = detail.get("input")
+    shown = repr(value)
+    if len(shown) > 40:
+        shown = shown[:37] + "..."
+    return loc, f"{detail['msg']} (got {shown})"
+
+
+def terminal_file_text(terminals: Mapping[str, TerminalType]) -> str:
+    """The canonical YAML text for these terminal types (our layout)."""
+    for name, terminal in terminals.items():
+        check_terminal(name, terminal)
+    data = {
+        name: terminal.model_dump(mode="python", exclude_defaults=True)
+        for name, terminal in terminals.items()
+    }
+    return dump_yaml(data)
+
+
+def write_terminal_file(
+    path: Path | str, terminals: Mapping[str, TerminalType]
+) -> None:
+    """Write terminal types to `path` in the canonical text."""
+    Path(path).write_text(terminal_file_text(terminals), encoding="utf-8")
+
+
+def terminal_file_name(type_name: str) -> str:
+    """`EL3104` -> `EL3104.yaml`: one file per terminal type."""
+    return f"{type_name}.yaml"

@@ -1,0 +1,63 @@
+"""Names: `{channel}` templates and PV-friendly attribute names.
+
+Symbol and member names in the terminal YAML are templates where one node
+stands for the same PDO on several channels ("AI Standard Channel {channel}").
+FastCS attribute names must be snake_case identifiers and become part of PV
+names, so they are derived here once, the same way for generator and loader.
+"""
+
+from __future__ import annotations
+
+import re
+
+CHANNEL = "{channel}"
+
+_MARK = "\x00"
+_NOT_ALNUM = re.compile(r"[^0-9a-zA-Z\x00]+")
+
+
+def expand(template: str, channel: int | None) -> str:
+    """The name for one channel (templates without `{channel}` stay as they are)."""
+    if channel is None:
+        return template
+    return template.replace(CHANNEL, str(channel))
+
+
+def templatize(name: str, channel: int) -> str:
+    """Replace the channel number in `name` by `{channel}` where it stands alone.
+
+    "Ch2 Value" with channel 2 -> "Ch{channel} Value"; digits that are part
+    of a longer number ("12") are left alone.
+    """
+    return re.sub(rf"(?<!\d){channel}(?!\d)", CHANNEL, name)
+
+
+def snake_name(text: str) -> str:
+    """A snake_case identifier for a free-text name, keeping `{channel}`.
+
+    "AI Standard Channel {channel}" -> "ai_standard_channel_{channel}",
+    "Ch{channel} Value" -> "ch{channel}_value", "Status__TxPDO Toggle" ->
+    "status_txpdo_toggle"; a name that would start with a digit gets an `n`
+    (a channel: `ch`) in front so it stays a valid identifier.
+    """
+    marked = text.replace(CHANNEL, _MARK)
+    snaked = _NOT_ALNUM.sub("_", marked).strip("_").lower()
+    if not snaked:
+        return "unnamed"
+    if snaked[0].isdigit():
+        snaked = "n" + snaked
+    elif snaked[0] == _MARK:
+        snaked = "ch" + snaked
+    return snaked.replace(_MARK, CHANNEL)
+
+
+def unique_name(name: str, taken: set[str], suffix: str) -> str:
+    """`name`, or `name_<suffix>` (then `_2`, `_3`...) if it is already taken."""
+    if name not in taken:
+        return name
+    candidate = f"{name}_{suffix}"
+    number = 2
+    while candidate in taken:
+        candidate = f"{name}_{suffix}_{number}"
+        number += 1
+    return candidate

@@ -1,0 +1,90 @@
+"""Shared helpers of the terminals tests (no tests here).
+
+`run_cli` runs the real `fastcs-ethercat` entry point in-process (argv,
+stdout, stderr and the exit code as a user would see them); `ESI` and
+`FIXTURE` are the real Beckhoff files and the EL3356-0010 fixture.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import os
+import sys
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+from fastcs_ethercat.cli import app
+from fastcs_ethercat.esi.catalog import EsiCatalog, build_catalog
+
+REPO = Path(__file__).resolve().parents[1]
+ESI = REPO / ".." / "shared" / "esi"
+FIXTURE = REPO / "tests" / "data" / "esi" / "EL3356-0010-fixture.xml"
+TERMINALS = REPO / "terminals"
+ESI_ARGS = ["--esi", str(ESI), "--esi", str(FIXTURE)]
+
+DLS_TYPES = [
+    "EK1100",
+    "EK1122",
+    "EL1014",
+    "EL1084",
+    "EL1124",
+    "EL1502",
+    "EL2024",
+    "EL2124",
+    "EL3104",
+    "EL3124",
+    "EL3202",
+    "EL3314",
+    "EL3356-0010",
+    "EL3602",
+    "EL3702",
+    "EL4134",
+    "EL4732",
+    "ELM3704-0000",
+    "EP3174-0002",
+    "EP4374-0002",
+]
+
+
+@dataclass(frozen=True)
+class CliResult:
+    code: int
+    out: str
+    err: str
+
+
+def run_cli(*args: str) -> CliResult:
+    """Run `fastcs-ethercat <args>` in this process, as the console script does."""
+    out, err = io.StringIO(), io.StringIO()
+    saved = sys.argv
+    sys.argv = ["fastcs-ethercat", *args]
+    code = 0
+    try:
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            app()
+    except SystemExit as done:
+        code = done.code if isinstance(done.code, int) else 1
+    finally:
+        sys.argv = saved
+    return CliResult(code, out.getvalue(), err.getvalue())
+
+
+@contextlib.contextmanager
+def cache_home(path: Path) -> Iterator[None]:
+    """XDG_CACHE_HOME pointed at `path` (catalog cache, ESI zip) for a while."""
+    before = os.environ.get("XDG_CACHE_HOME")
+    os.environ["XDG_CACHE_HOME"] = str(path)
+    try:
+        yield
+    finally:
+        if before is None:
+            os.environ.pop("XDG_CACHE_HOME", None)
+        else:
+            os.environ["XDG_CACHE_HOME"] = before
+
+
+def real_catalog() -> EsiCatalog:
+    """The catalog of the shared ESI files plus the EL3356-0010 fixture."""
+    return build_catalog([ESI, FIXTURE], use_cache=False)
