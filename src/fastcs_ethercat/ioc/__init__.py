@@ -1,0 +1,1 @@
+"""The FastCS side: configuration, PV naming, type mapping, launch."""

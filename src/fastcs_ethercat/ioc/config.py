@@ -1,0 +1,249 @@
+"""IOC instance configuration: one YAML file, command-line flags on top.
+
+Errors come back as one `UserError` line naming the file and the key
+(`ioc/bl01.yaml:route.password_file: ...`). A route password never appears in
+the file: the file names an environment variable or a secret file, and the
+password is read only when the route is added, as a `SecretStr`.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any, Final
+
+import yaml
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    SecretStr,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
+
+from fastcs_ethercat.ads.netid import AmsNetId
+from fastcs_ethercat.errors import UserError
+from fastcs_ethercat.ioc.naming import check_alias, check_prefix
+
+DEFAULT_ADS_TCP_PORT: Final = 48898
+DEFAULT_POLL_RATE_HZ: Final = 10.0
+MAX_POLL_RATE_HZ: Final = 1000.0
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class RouteConfig(_Strict):
+    """Add a route for this host on the target before connecting (UDP 48899)."""
+
+    user: str = "Administrator"
+    password_env: str | None = None
+    """Name of the environment variable that holds the password."""
+    password_file: Path | None = None
+    """File whose first line is the password (relative: to the config file)."""
+    route_name: str | None = None
+    """Name of the route on the target; default: this host's name."""
+    host_address: str | None = None
+    """Address the target uses to reach this host; default: its own guess."""
+
+    @model_validator(mode="after")
+    def _one_password_source(self) -> RouteConfig:
+        if (self.password_env is None) == (self.password_file is None):
+            raise ValueError("give exactly one of password_env and password_file")
+        return self
+
+    def password(self) -> SecretStr:
+        """Read the password now; never store or log the result."""
+        if self.password_env is not None:
+            value = os.environ.get(self.password_env)
+            if value is None:
+                raise UserError(
+                    f"environment variable {self.password_env} is not set",
+                    where="route.password_env",
+                )
+            return SecretStr(value)
+        assert self.password_file is not None
+        try:
+            text = self.password_file.read_text(encoding="utf-8")
+        except OSError as error:
+            raise UserError(
+                f"cannot read the password file: {error.strerror}",
+                path=self.password_file,
+                where="route.password_file",
+            ) from None
+        lines = text.splitlines()
+        return SecretStr(lines[0] if lines else "")
+
+
+class TransportsConfig(_Strict):
+    """Which EPICS protocols to serve; both by default."""
+
+    ca: bool = True
+    pva: bool = True
+
+    @model_validator(mode="after")
+    def _at_least_one(self) -> TransportsConfig:
+        if not (self.ca or self.pva):
+            raise ValueError("enable at least one of ca and pva")
+        return self
+
+
+class TerminalConfig(_Strict):
+    """Per-terminal settings, keyed by the terminal's TwinCAT name or path."""
+
+    poll_rate_hz: float | None = Field(default=None, gt=0, le=MAX_POLL_RATE_HZ)
+
+
+class IocConfig(_Strict):
+    """Everything one IOC instance needs to know."""
+
+    prefix: str
+    target: str
+    """TwinCAT host (or the simulator), `host` or `host:port` (ADS TCP)."""
+    ams_net_id: str | None = None
+    """AMS NetId of the target; discovered over UDP 48899 when not given."""
+    local_net_id: str | None = None
+    """AMS NetId of this host; pyads derives one from the local IP when unset."""
+    route: RouteConfig | None = None
+    poll_rate_hz: float = Field(default=DEFAULT_POLL_RATE_HZ, gt=0, le=MAX_POLL_RATE_HZ)
+    terminals: dict[str, TerminalConfig] = Field(default_factory=dict)
+    terminal_dirs: tuple[Path, ...] = (Path("terminals"),)
+    pv_aliases: dict[str, str] = Field(default_factory=dict)
+    transports: TransportsConfig = TransportsConfig()
+    screens_dir: Path | None = None
+    """Where to write Phoebus .bob screens; none when unset."""
+    read_only: bool = False
+    """Serve outputs (RxPDO symbols, CoE objects) read-only."""
+
+    @field_validator("prefix")
+    @classmethod
+    def _prefix_fits(cls, prefix: str) -> str:
+        try:
+            check_prefix(prefix)
+        except UserError as error:
+            raise ValueError(str(error).removeprefix("prefix: ")) from None
+        return prefix
+
+    @field_validator("target")
+    @classmethod
+    def _target_parses(cls, target: str) -> str:
+        split_host_port(target)
+        return target
+
+    @field_validator("ams_net_id", "local_net_id")
+    @classmethod
+    def _netid_parses(cls, netid: str | None) -> str | None:
+        return None if netid is None else str(AmsNetId.parse(netid))
+
+    @field_validator("pv_aliases")
+    @classmethod
+    def _aliases_are_segments(cls, aliases: dict[str, str]) -> dict[str, str]:
+        for key, segment in aliases.items():
+            try:
+                check_alias(key, segment)
+            except UserError as error:
+                raise ValueError(str(error)) from None
+        return aliases
+
+    @property
+    def target_host(self) -> str:
+        return split_host_port(self.target)[0]
+
+    @property
+    def target_port(self) -> int:
+        return split_host_port(self.target)[1]
+
+    def poll_period(self, *terminal_keys: str) -> float:
+        """Seconds between polls of a terminal: its own rate if set, else the IOC's."""
+        for key in terminal_keys:
+            rate = self.terminals.get(key, TerminalConfig()).poll_rate_hz
+            if rate is not None:
+                return 1.0 / rate
+        return 1.0 / self.poll_rate_hz
+
+
+def split_host_port(target: str) -> tuple[str, int]:
+    """`host` or `host:port` -> (host, port); the ADS TCP port is 48898."""
+    host, sep, port = target.strip().rpartition(":")
+    if not sep:
+        host, port = target.strip(), str(DEFAULT_ADS_TCP_PORT)
+    if not host or not port.isdecimal() or not 0 < int(port) < 65536:
+        raise ValueError(f"target must be host or host:port, got {target!r}")
+    return host, int(port)
+
+
+def load_ioc_config(
+    path: Path | None, overrides: Mapping[str, Any] | None = None
+) -> IocConfig:
+    """Load the YAML file (if any), apply flags (dotted keys; None: not given).
+
+    Relative paths in the file are taken relative to the file's directory.
+    """
+    raw: dict[str, Any] = {}
+    if path is not None:
+        raw = _read_yaml(path)
+        _resolve_paths(raw, path.parent)
+    given = {
+        key: value for key, value in (overrides or {}).items() if value is not None
+    }
+    for dotted, value in given.items():
+        _set_dotted(raw, dotted, value)
+    try:
+        return IocConfig.model_validate(raw)
+    except ValidationError as error:
+        first = error.errors()[0]
+        where = ".".join(str(part) for part in first["loc"]) or "(top level)"
+        if where in given:
+            where = f"{where} (command line)"
+        message = first["msg"].removeprefix("Value error, ")
+        if first["type"] == "extra_forbidden":
+            message = "unknown key"
+        raise UserError(message, path=path, where=where) from None
+
+
+def _read_yaml(path: Path) -> dict[str, Any]:
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as error:
+        raise UserError(f"cannot read: {error.strerror}", path=path) from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as error:
+        mark = getattr(error, "problem_mark", None)
+        where = f"line {mark.line + 1}" if mark is not None else None
+        problem = getattr(error, "problem", None) or "not valid YAML"
+        raise UserError(f"not valid YAML: {problem}", path=path, where=where) from None
+    if data is None:
+        return {}
+    if not isinstance(data, dict):
+        raise UserError("expected a mapping of settings at the top", path=path)
+    return data
+
+
+def _resolve_paths(raw: dict[str, Any], base: Path) -> None:
+    def resolve(value: Any) -> Any:
+        return str(base / value) if isinstance(value, str) else value
+
+    if isinstance(raw.get("terminal_dirs"), list):
+        raw["terminal_dirs"] = [resolve(item) for item in raw["terminal_dirs"]]
+    if "screens_dir" in raw:
+        raw["screens_dir"] = resolve(raw["screens_dir"])
+    route = raw.get("route")
+    if isinstance(route, dict) and "password_file" in route:
+        route["password_file"] = resolve(route["password_file"])
+
+
+def _set_dotted(raw: dict[str, Any], dotted: str, value: Any) -> None:
+    *parents, last = dotted.split(".")
+    node = raw
+    for part in parents:
+        child = node.get(part)
+        if not isinstance(child, dict):
+            child = {}
+            node[part] = child
+        node = child
+    node[last] = value

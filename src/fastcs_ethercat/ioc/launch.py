@@ -1,0 +1,157 @@
+"""Start a FastCS controller tree as an EPICS IOC: CA and/or PVA, PVI, screens.
+
+FastCS's own `launch()` builds its controllers from a YAML schema of their
+`__init__`; our tree comes from the live symbol table instead, so this module
+builds the transports itself and runs `FastCS` directly:
+
+- CA: `EpicsCATransport` (softioc records; the callback queue is enlarged
+  before iocInit, because every changed value of every record queues one
+  callback and the EPICS default of 2000 overflows on a large rack),
+- PVA: `EpicsPVATransport` (p4p), which also serves the PVI structure
+  `<path>:PVI` of every controller,
+- screens: `EpicsGUIOptions` on one transport (both would write the same
+  files): `<prefix>.bob`, `index.bob` and one sub-screen per sub-controller.
+
+softioc can initialise only once per process, so an IOC (and every test of
+one) lives in its own process. The ready line goes to stdout once both
+transports serve, so a parent process knows when to look for PVs.
+"""
+
+from __future__ import annotations
+
+import asyncio
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Final
+
+from fastcs.control_system import FastCS
+from fastcs.controllers import Controller, ControllerAPI
+from fastcs.transports import Transport
+from fastcs.transports.epics import EpicsGUIOptions
+
+READY_PREFIX: Final = "fastcs-ethercat ioc ready:"
+DEFAULT_CALLBACK_QUEUE_SIZE: Final = 50_000
+"""Entries per EPICS callback queue; the default 2000 overflows ("ring buffer
+full") when a few thousand records change in one poll cycle."""
+
+
+@dataclass(frozen=True)
+class LaunchOptions:
+    """How to serve the tree."""
+
+    ca: bool = True
+    pva: bool = True
+    screens_dir: Path | None = None
+    """Write Phoebus .bob screens here (PVA PVs if CA is off)."""
+    screens_title: str = "EtherCAT"
+    ca_aliases: Mapping[str, str] = field(default_factory=dict)
+    """Extra CA record names, full PV -> alias (CA only; PVA has no aliases)."""
+    callback_queue_size: int = DEFAULT_CALLBACK_QUEUE_SIZE
+
+    def __post_init__(self) -> None:
+        if not (self.ca or self.pva):
+            raise ValueError("serve at least one of CA and PVA")
+
+
+def build_transports(options: LaunchOptions) -> list[Transport]:
+    """The FastCS transports for `options` (imports softioc only for CA)."""
+    gui = (
+        EpicsGUIOptions(output_dir=options.screens_dir, title=options.screens_title)
+        if options.screens_dir is not None
+        else None
+    )
+    transports: list[Transport] = []
+    if options.ca:
+        from fastcs.transports.epics import EpicsCAOptions
+        from fastcs.transports.epics.ca.transport import EpicsCATransport
+
+        transports.append(
+            EpicsCATransport(
+                epicsca=EpicsCAOptions(aliases=dict(options.ca_aliases)), gui=gui
+            )
+        )
+    if options.pva:
+        from fastcs.transports.epics.pva.transport import EpicsPVATransport
+
+        transports.append(EpicsPVATransport(gui=None if options.ca else gui))
+    return transports
+
+
+def build_fastcs(
+    root: Controller,
+    prefix: str,
+    options: LaunchOptions,
+    loop: asyncio.AbstractEventLoop,
+    *,
+    on_ready: Callable[[], object] | None = None,
+) -> FastCS:
+    """A `FastCS` serving `root` under `prefix`; prints the ready line when up.
+
+    Give the root its path before adding sub-controllers: FastCS copies a
+    parent's path into a sub-controller when it is added.
+    """
+    if root.path and root.path != [prefix]:
+        raise ValueError(f"root controller already has path {root.path}")
+    if not root.path:
+        root.set_path([prefix])
+    if options.ca:
+        from softioc.imports import callbackSetQueueSize
+
+        callbackSetQueueSize(options.callback_queue_size)
+    transports = [*build_transports(options), _Announce(prefix, on_ready)]
+    return FastCS(root, transports, loop)
+
+
+def run(
+    root: Controller,
+    prefix: str,
+    options: LaunchOptions,
+    *,
+    on_ready: Callable[[], object] | None = None,
+) -> None:
+    """Serve until SIGINT or SIGTERM, as this process's one IOC."""
+    loop = asyncio.new_event_loop()
+    asyncio.set_event_loop(loop)
+    try:
+        build_fastcs(root, prefix, options, loop, on_ready=on_ready).run(
+            interactive=False
+        )
+    finally:
+        loop.close()
+
+
+class _Announce(Transport):
+    """Prints the ready line once the real transports serve.
+
+    FastCS gathers the transports' `serve()` in order: CA runs iocInit and PVA
+    starts its p4p server in their first step, so once this last one has
+    yielded a few times, both are up.
+    """
+
+    def __init__(self, prefix: str, on_ready: Callable[[], object] | None) -> None:
+        self.prefix = prefix
+        self.on_ready = on_ready
+
+    def connect(
+        self, controller_apis: list[ControllerAPI], loop: asyncio.AbstractEventLoop
+    ) -> None:
+        """Nothing to connect: this transport serves no PVs."""
+
+    async def serve(self) -> None:
+        for _ in range(3):
+            await asyncio.sleep(0)
+        print(f"{READY_PREFIX} prefix={self.prefix}", flush=True)
+        if self.on_ready is not None:
+            self.on_ready()
+
+    def __repr__(self) -> str:
+        return "ReadyAnnouncement()"
+
+
+def parse_ready_line(line: str) -> dict[str, str] | None:
+    """The key=value fields of a ready line, or None for any other line."""
+    if not line.startswith(READY_PREFIX):
+        return None
+    fields = line[len(READY_PREFIX) :].split()
+    return dict(item.split("=", 1) for item in fields if "=" in item)
