@@ -1,0 +1,256 @@
+"""Chain + terminal YAML -> the concrete system: names, addresses, NetIds,
+identities and each terminal's active configuration.
+
+Defaults follow TwinCAT: masters are `Device <n> (EtherCAT)` with the system
+NetId's 5th byte set to n + 1 (facts section 6, catio's dumps); slaves are
+`Term <k> (<type>)` numbered across the whole project and get EtherCAT
+addresses 1001, 1002, ... in bus order (real rack dumps).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Final
+
+from fastcs_ethercat.ads.ethercat import AlState, SlaveIdentity
+from fastcs_ethercat.ads.netid import AmsNetId
+from fastcs_ethercat.errors import UserError
+from fastcs_ethercat.sim.chain import Chain, MasterSpec, SlaveSpec
+from fastcs_ethercat.terminals.files import terminal_file_name
+from fastcs_ethercat.terminals.loader import load_terminals
+from fastcs_ethercat.terminals.model import TerminalType
+from fastcs_ethercat.terminals.registry import TerminalRegistry
+from fastcs_ethercat.terminals.symbols import ExpandedSymbol, expanded_symbols
+
+FIRST_SLAVE_ADDRESS: Final = 1001
+"""EtherCAT address of the first slave of a master (TwinCAT's default)."""
+
+
+@dataclass(frozen=True, slots=True)
+class ResolvedSlave:
+    """One slave as the simulator runs it."""
+
+    position: int
+    """0-based position on its master's bus."""
+    name: str
+    type_name: str
+    address: int
+    identity: SlaveIdentity
+    terminal: TerminalType
+    """The YAML description with the chain's PDO group / factor applied."""
+    spec: SlaveSpec
+    initial_state: AlState
+
+    def active_symbols(self) -> list[ExpandedSymbol]:
+        """The symbols of the active PDO configuration, per channel.
+
+        Without PDO groups every PDO is assigned. With groups, TwinCAT assigns
+        exactly the PDOs of the selected group (the ESI's
+        `AlternativeSmMapping`): a PDO in no group is not assigned (ELM3704's
+        `PAI Samples 2 Channel 1`, `PAI Control Channel 1` have no default
+        sync manager and are in no mapping). This is the heart of dynamic PDOs.
+        """
+        terminal = self.terminal
+        symbols = expanded_symbols(terminal)
+        active = terminal.active_group
+        if active is None:
+            return symbols
+        pdos = set(active.pdo_indices)
+        nodes = set(active.symbol_indices)
+        return [
+            symbol
+            for symbol in symbols
+            if (
+                symbol.pdo_index in pdos
+                if symbol.pdo_index is not None and pdos
+                else symbol.node_index in nodes
+            )
+        ]
+
+    @property
+    def has_mailbox(self) -> bool:
+        """Terminals with a CoE dictionary answer SDO requests."""
+        return bool(self.terminal.coe_objects)
+
+
+@dataclass(frozen=True, slots=True)
+class ResolvedMaster:
+    """One EtherCAT master (I/O device) and its slaves in bus order."""
+
+    index: int
+    device_id: int
+    name: str
+    net_id: AmsNetId
+    info_data: bool
+    slaves: tuple[ResolvedSlave, ...]
+
+
+def resolve_chain(
+    chain: Chain, terminals: TerminalRegistry | Path | str
+) -> tuple[AmsNetId, tuple[ResolvedMaster, ...]]:
+    """The system NetId and every master with its slaves, checked against the
+    terminal YAML (unknown types, PDO groups and factors are UserErrors)."""
+    registry = (
+        terminals
+        if isinstance(terminals, TerminalRegistry)
+        else load_terminals([Path(terminals)])
+    )
+    system_net_id = AmsNetId.parse(chain.system.net_id)
+    masters: list[ResolvedMaster] = []
+    term_number = 1
+    for m, master in enumerate(chain.masters):
+        slaves: list[ResolvedSlave] = []
+        for s, slave in enumerate(master.slaves):
+            slaves.append(_resolve_slave(chain, registry, (m, s), slave, term_number))
+            term_number += 1
+        masters.append(
+            ResolvedMaster(
+                index=m,
+                device_id=m + 1,
+                name=master.name or f"Device {m + 1} (EtherCAT)",
+                net_id=_master_net_id(master, system_net_id, m),
+                info_data=master.info_data,
+                slaves=tuple(slaves),
+            )
+        )
+    _check_unique(chain, system_net_id, masters)
+    return system_net_id, tuple(masters)
+
+
+def _master_net_id(master: MasterSpec, system: AmsNetId, index: int) -> AmsNetId:
+    if master.net_id is not None:
+        return AmsNetId.parse(master.net_id)
+    return system.with_octet(4, index + 2)
+
+
+def _resolve_slave(
+    chain: Chain,
+    registry: TerminalRegistry,
+    where: tuple[int, int],
+    spec: SlaveSpec,
+    term_number: int,
+) -> ResolvedSlave:
+    m, s = where
+    loc = ("masters", m, "slaves", s)
+    if spec.type not in registry:
+        known = ", ".join(registry.type_names()) or "none"
+        raise chain.error(
+            (*loc, "type"), f"unknown terminal type {spec.type!r} (known: {known})"
+        )
+    terminal = registry.get(spec.type).terminal
+    terminal = _with_pdo_group(chain, loc, spec, terminal)
+    terminal = _with_oversampling(chain, loc, spec, terminal)
+    identity = terminal.identity
+    return ResolvedSlave(
+        position=s,
+        name=spec.name or f"Term {term_number} ({spec.type})",
+        type_name=spec.type,
+        address=FIRST_SLAVE_ADDRESS + s,
+        identity=SlaveIdentity(
+            vendor_id=identity.vendor_id,
+            product_code=identity.product_code,
+            revision=spec.revision
+            if spec.revision is not None
+            else identity.revision_number,
+            serial_number=spec.serial,
+        ),
+        terminal=terminal,
+        spec=spec,
+        initial_state=AlState[spec.al_state],
+    )
+
+
+def _with_pdo_group(
+    chain: Chain, loc: tuple[object, ...], spec: SlaveSpec, terminal: TerminalType
+) -> TerminalType:
+    if spec.pdo_group is None:
+        return terminal
+    names = [group.name for group in terminal.pdo_groups]
+    if spec.pdo_group not in names:
+        offered = ", ".join(repr(n) for n in names) or "none (static PDOs)"
+        raise chain.error(
+            (*loc, "pdo_group"),
+            f"{spec.type} has no PDO group {spec.pdo_group!r} (groups: {offered})",
+        )
+    return terminal.model_copy(update={"selected_pdo_group": spec.pdo_group})
+
+
+def _with_oversampling(
+    chain: Chain, loc: tuple[object, ...], spec: SlaveSpec, terminal: TerminalType
+) -> TerminalType:
+    oversampling = terminal.oversampling
+    active = terminal.active_group
+    if oversampling is not None and oversampling.by_group and active is not None:
+        factor = active.oversampling_factor or oversampling.selected_factor
+        if spec.oversampling is not None and spec.oversampling != factor:
+            raise chain.error(
+                (*loc, "oversampling"),
+                f"{spec.type} takes its factor from the PDO group "
+                f"({active.name!r} has {factor}); choose the group instead",
+            )
+        updated = oversampling.model_copy(update={"selected_factor": factor})
+        return terminal.model_copy(update={"oversampling": updated})
+    if spec.oversampling is None:
+        return terminal
+    if oversampling is None:
+        raise chain.error(
+            (*loc, "oversampling"), f"{spec.type} is not an oversampling terminal"
+        )
+    if oversampling.factors and spec.oversampling not in oversampling.factors:
+        offered = ", ".join(str(f) for f in oversampling.factors)
+        raise chain.error(
+            (*loc, "oversampling"),
+            f"{spec.type} offers oversampling factors {offered}, "
+            f"not {spec.oversampling}",
+        )
+    updated = oversampling.model_copy(update={"selected_factor": spec.oversampling})
+    return terminal.model_copy(update={"oversampling": updated})
+
+
+def _check_unique(
+    chain: Chain, system: AmsNetId, masters: list[ResolvedMaster]
+) -> None:
+    """NetIds and names must not collide (TwinCAT would not allow it)."""
+    net_ids = {system: "the system"}
+    names: dict[str, str] = {}
+    for master in masters:
+        loc = ("masters", master.index)
+        if master.net_id in net_ids:
+            raise chain.error(
+                (*loc, "net_id"),
+                f"NetId {master.net_id} is already used by {net_ids[master.net_id]}",
+            )
+        net_ids[master.net_id] = master.name
+        for slave in (master.name, *(s.name for s in master.slaves)):
+            if slave in names:
+                raise chain.error(loc, f"name {slave!r} is used twice")
+            names[slave] = master.name
+
+
+def registry_for(
+    terminals_dir: Path | str, types: Iterable[str] | None = None
+) -> TerminalRegistry:
+    """The terminal types of a directory of YAML files.
+
+    With `types`, only their files (`<type>.yaml`, one file per type) are
+    read when all exist, which keeps start-up fast; otherwise every file.
+    """
+    path = Path(terminals_dir)
+    if not path.is_dir():
+        raise UserError("no such terminal directory", path=path)
+    if types is not None:
+        wanted = [path / terminal_file_name(name) for name in sorted(set(types))]
+        if all(file.is_file() for file in wanted):
+            return load_terminals(wanted)
+    return load_terminals([path])
+
+
+__all__ = [
+    "FIRST_SLAVE_ADDRESS",
+    "ResolvedMaster",
+    "ResolvedSlave",
+    "registry_for",
+    "resolve_chain",
+]

@@ -1,0 +1,313 @@
+"""Run the simulator: AMS/TCP server, UDP discovery, control API and the task
+cycle that moves the model and pushes notifications, all in one event loop.
+
+    Simulator(target, SimulatorConfig(...))   start() / stop() inside a loop
+    SimulatorThread(target, config)           the same in a background thread,
+                                              for blocking clients like pyads
+    serve(target, config)                     the CLI: ready line, SIGINT/SIGTERM
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import os
+import signal
+import sys
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from types import TracebackType
+from typing import Any, Final, Protocol, Self
+
+from fastcs_ethercat.ads.constants import ADS_TCP_PORT, ADS_UDP_PORT
+from fastcs_ethercat.ads.netid import AmsNetId
+from fastcs_ethercat.sim.control import (
+    ControlHttpServer,
+    ControllableTarget,
+    Endpoints,
+    SimControl,
+)
+from fastcs_ethercat.sim.server import AmsServer, SimTargetLike
+from fastcs_ethercat.sim.udp import UdpResponder
+
+log = logging.getLogger(__name__)
+
+READY_PREFIX: Final = "fastcs-ethercat sim ready:"
+CONTROL_HOST: Final = "127.0.0.1"
+"""The control API can force values and break things: loopback only, always."""
+DEFAULT_CYCLE_SECONDS: Final = 0.010
+THREAD_START_TIMEOUT_SECONDS: Final = 30.0
+
+
+class RunnableTarget(SimTargetLike, ControllableTarget, Protocol):
+    """Everything the simulator asks of the model (`sim.target.SimTarget`)."""
+
+    @property
+    def system_net_id(self) -> AmsNetId: ...
+
+    @property
+    def cycle_s(self) -> float:
+        """The model's task cycle (the chain's task_cycle_ms), in seconds."""
+        ...
+
+    def tick(self, now: float) -> Any: ...
+
+
+@dataclass(frozen=True)
+class SimulatorConfig:
+    """Where to listen and how fast the task cycle runs. Port 0 = any free port;
+    `udp_port` / `control_port` None = that service is off; `cycle_seconds`
+    None = the model's own task cycle."""
+
+    host: str = "127.0.0.1"
+    port: int = ADS_TCP_PORT
+    udp_port: int | None = ADS_UDP_PORT
+    control_port: int | None = None
+    cycle_seconds: float | None = None
+
+
+def ready_line(endpoints: Endpoints) -> str:
+    """The one line the CLI prints when every socket is bound."""
+    udp = (
+        f"{endpoints.host}:{endpoints.udp_port}"
+        if endpoints.udp_port is not None
+        else "off"
+    )
+    control = (
+        f"http://{CONTROL_HOST}:{endpoints.control_port}"
+        if endpoints.control_port is not None
+        else "off"
+    )
+    return (
+        f"{READY_PREFIX} net_id={endpoints.net_id} "
+        f"tcp={endpoints.host}:{endpoints.tcp_port} udp={udp} control={control}"
+    )
+
+
+def parse_ready_line(line: str) -> dict[str, str]:
+    """The key=value fields of a ready line (for `SimProcess`)."""
+    if not line.startswith(READY_PREFIX):
+        raise ValueError(f"not a ready line: {line!r}")
+    fields = line[len(READY_PREFIX) :].split()
+    return dict(field.split("=", 1) for field in fields if "=" in field)
+
+
+class Simulator:
+    """One simulated TwinCAT system on loopback sockets, inside a running loop."""
+
+    def __init__(
+        self, target: RunnableTarget, config: SimulatorConfig | None = None
+    ) -> None:
+        self.target = target
+        self.config = config or SimulatorConfig()
+        self.server = AmsServer(target)
+        self.udp: UdpResponder | None = None
+        self.http: ControlHttpServer | None = None
+        self._control: SimControl | None = None
+        self._ticker: asyncio.Task[None] | None = None
+
+    @property
+    def control(self) -> SimControl:
+        if self._control is None:
+            raise RuntimeError("the simulator is not started")
+        return self._control
+
+    async def start(self) -> None:
+        """Bind every socket and start the task cycle."""
+        config = self.config
+        loop = asyncio.get_running_loop()
+        self._control = SimControl(self.server, self.target, loop, self.endpoints)
+        try:
+            await self.server.start(config.host, config.port)
+            if config.udp_port is not None:
+                self.udp = UdpResponder(self.target.system_net_id)
+                await self.udp.start(config.host, config.udp_port)
+            if config.control_port is not None:
+                self.http = ControlHttpServer(self._control)
+                await self.http.start(CONTROL_HOST, config.control_port)
+        except BaseException:
+            await self.stop()
+            raise
+        self._ticker = loop.create_task(self._tick_forever(), name="sim-task-cycle")
+
+    async def stop(self) -> None:
+        """Close every socket and stop the task cycle (idempotent)."""
+        if self._ticker is not None:
+            self._ticker.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await self._ticker
+            self._ticker = None
+        if self.http is not None:
+            await self.http.close()
+            self.http = None
+        if self.udp is not None:
+            self.udp.close()
+            self.udp = None
+        await self.server.close()
+
+    def endpoints(self) -> Endpoints:
+        return Endpoints(
+            net_id=str(self.target.system_net_id),
+            host=self.config.host,
+            tcp_port=self.server.port,
+            udp_port=self.udp.port if self.udp is not None else None,
+            control_port=self.http.port if self.http is not None else None,
+        )
+
+    def ready_line(self) -> str:
+        return ready_line(self.endpoints())
+
+    async def _tick_forever(self) -> None:
+        """The task cycle: move the model, then push due notifications."""
+        loop = asyncio.get_running_loop()
+        period = (
+            self.config.cycle_seconds or self.target.cycle_s or DEFAULT_CYCLE_SECONDS
+        )
+        deadline = loop.time()
+        while True:
+            try:
+                self.target.tick(time.monotonic())
+                self.server.tick(time.monotonic_ns(), time.time_ns())
+            except Exception:
+                log.exception("task cycle failed")
+            deadline += period
+            delay = deadline - loop.time()
+            if delay < 0:  # overran: skip the missed cycles instead of bursting
+                deadline = loop.time()
+                delay = 0
+            await asyncio.sleep(delay)
+
+
+async def serve(
+    target: RunnableTarget,
+    config: SimulatorConfig,
+    *,
+    announce: Callable[[str], None] = lambda line: print(line, flush=True),
+    exit_with_stdin: bool = False,
+) -> None:
+    """Run until SIGINT or SIGTERM; announce the ready line once bound.
+
+    With `exit_with_stdin`, also stop when stdin reaches end of file: a parent
+    that holds our stdin pipe (`SimProcess`) takes us down when it dies, even
+    if it never got to send a signal.
+    """
+    simulator = Simulator(target, config)
+    stop = asyncio.Event()
+    loop = asyncio.get_running_loop()
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        loop.add_signal_handler(signum, stop.set)
+    stdin = sys.stdin.fileno() if exit_with_stdin else None
+    if stdin is not None:
+        loop.add_reader(stdin, _stop_at_eof, stdin, stop)
+    try:
+        await simulator.start()
+        announce(simulator.ready_line())
+        await stop.wait()
+    finally:
+        if stdin is not None:
+            loop.remove_reader(stdin)
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            loop.remove_signal_handler(signum)
+        await simulator.stop()
+
+
+def _stop_at_eof(fd: int, stop: asyncio.Event) -> None:
+    try:
+        data = os.read(fd, 4096)
+    except OSError:
+        data = b""
+    if not data:
+        stop.set()
+
+
+class SimulatorThread:
+    """A `Simulator` on its own event loop in a daemon thread.
+
+    For in-process tests whose client blocks (pyads): the test thread stays
+    free to block while the simulator answers.
+
+        with SimulatorThread(target, SimulatorConfig(port=0, udp_port=0)) as sim:
+            sim.endpoints.tcp_port, sim.control.counters()
+    """
+
+    def __init__(
+        self, target: RunnableTarget, config: SimulatorConfig | None = None
+    ) -> None:
+        self.simulator = Simulator(
+            target, config or SimulatorConfig(port=0, udp_port=0)
+        )
+        self._loop = asyncio.new_event_loop()
+        self._thread = threading.Thread(target=self._run, name="simulator", daemon=True)
+        self._started = threading.Event()
+        self._stop: asyncio.Event | None = None
+        self._error: BaseException | None = None
+
+    @property
+    def control(self) -> SimControl:
+        return self.simulator.control
+
+    @property
+    def endpoints(self) -> Endpoints:
+        return self.simulator.endpoints()
+
+    @property
+    def loop(self) -> asyncio.AbstractEventLoop:
+        return self._loop
+
+    def call(self, function: Callable[[], Any]) -> Any:
+        """Run `function` on the simulator's loop and return its result."""
+        future = asyncio.run_coroutine_threadsafe(_as_coroutine(function), self._loop)
+        return future.result(timeout=THREAD_START_TIMEOUT_SECONDS)
+
+    def start(self) -> None:
+        self._thread.start()
+        if not self._started.wait(THREAD_START_TIMEOUT_SECONDS):
+            raise RuntimeError("the simulator thread did not start")
+        if self._error is not None:
+            self._thread.join()
+            raise self._error
+
+    def stop(self) -> None:
+        if self._thread.is_alive() and self._stop is not None:
+            self._loop.call_soon_threadsafe(self._stop.set)
+        self._thread.join(THREAD_START_TIMEOUT_SECONDS)
+
+    def __enter__(self) -> Self:
+        self.start()
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        traceback: TracebackType | None,
+    ) -> None:
+        self.stop()
+
+    def _run(self) -> None:
+        asyncio.set_event_loop(self._loop)
+        try:
+            self._loop.run_until_complete(self._main())
+        finally:
+            self._loop.close()
+
+    async def _main(self) -> None:
+        self._stop = asyncio.Event()
+        try:
+            await self.simulator.start()
+        except BaseException as error:
+            self._error = error
+            self._started.set()
+            return
+        self._started.set()
+        try:
+            await self._stop.wait()
+        finally:
+            await self.simulator.stop()
+
+
+async def _as_coroutine(function: Callable[[], Any]) -> Any:
+    return function()

@@ -1,0 +1,472 @@
+"""The ADS services of each simulated AMS port.
+
+| port | on | serves |
+|---|---|---|
+| 300 | system NetId | I/O server: device list, names, NetIds, types (group 0x5000) |
+| 10000 | system NetId | system service: ReadState, WriteControl RUN / STOP |
+| 27904 + n | system NetId | device n: symbols, handles, images, sum commands |
+| 0xFFFF | device NetId | EtherCAT master queries, the master's CoE |
+| slave address | device NetId | the slave's CoE dictionary (0xF302) |
+
+Every port answers ReadState (RUN 5, or STOP 6 while the runtime is
+stopped) and ReadDeviceInfo. Unknown index groups answer 0x702, services a
+port does not offer 0x701, short read buffers 0x705. A read longer than a
+table or string gets the bytes there are (facts section 9).
+"""
+
+from __future__ import annotations
+
+import struct
+from dataclasses import dataclass, field
+from typing import Final
+
+from fastcs_ethercat.ads.commands import ReadDeviceInfoResponse
+from fastcs_ethercat.ads.constants import (
+    IO_DEVICE_TYPE_ETHERCAT,
+    AdsReturnCode,
+    AdsState,
+    IndexGroup,
+    IoServerDeviceOffset,
+)
+from fastcs_ethercat.ads.errors import AdsCodecError
+from fastcs_ethercat.ads.ethercat import (
+    encode_device_count,
+    encode_device_ids,
+    encode_device_name,
+    encode_device_netid,
+    encode_device_type,
+)
+from fastcs_ethercat.ads.sums import (
+    SumReadRequest,
+    SumReadResponse,
+    SumReadWriteRequest,
+    SumReadWriteResponse,
+    SumWriteRequest,
+    SumWriteResponse,
+)
+from fastcs_ethercat.ads.wire import decode_text
+from fastcs_ethercat.sim.device import SimDevice
+from fastcs_ethercat.sim.layout import AREAS, ImageArea
+from fastcs_ethercat.sim.master import SlaveRuntime
+
+VERSION: Final = (3, 1, 2103)
+"""Version and build the I/O server reports (catio's dumps of real racks)."""
+IO_SERVER_NAME: Final = "I/O Server"
+SYSTEM_SERVICE_NAME: Final = "TwinCAT System"
+DEVICE_PORT_NAME: Final = "EtherCAT Device"
+MASTER_PORT_NAME: Final = "EtherCAT Master"
+
+_SUM_GROUPS: Final = frozenset(
+    {
+        IndexGroup.SUMUP_READ,
+        IndexGroup.SUMUP_WRITE,
+        IndexGroup.SUMUP_READ_WRITE,
+        IndexGroup.SUMUP_READ_EX,
+        IndexGroup.SUMUP_READ_EX_2,
+        IndexGroup.SUMUP_ADD_DEVICE_NOTIFICATION,
+        IndexGroup.SUMUP_DELETE_DEVICE_NOTIFICATION,
+    }
+)
+_U32: Final = struct.Struct("<I")
+
+Outcome = tuple[int, bytes]
+
+
+@dataclass(slots=True)
+class RunState:
+    """Shared by every port: is the runtime running."""
+
+    running: bool = True
+
+    @property
+    def ads_state(self) -> int:
+        return int(AdsState.RUN if self.running else AdsState.STOP)
+
+
+def fit(data: bytes, length: int) -> Outcome:
+    """The answer to a read of `length` bytes: all of `data` if it fits."""
+    if length < len(data):
+        return AdsReturnCode.DEVICE_INVALID_SIZE, b""
+    return AdsReturnCode.NO_ERROR, data
+
+
+def request_name(data: bytes) -> str:
+    """A symbol name as clients send it (NUL-terminated or not)."""
+    return decode_text(data.split(b"\0", 1)[0]).strip()
+
+
+@dataclass(slots=True)
+class Port:
+    """Defaults every AMS port shares."""
+
+    run: RunState
+    name: str = ""
+
+    def device_info(self) -> ReadDeviceInfoResponse:
+        major, minor, build = VERSION
+        return ReadDeviceInfoResponse(
+            major=major, minor=minor, build=build, name=self.name[:16]
+        )
+
+    def read_state(self) -> tuple[int, int]:
+        return self.run.ads_state, 0
+
+    def write_control(self, ads_state: int, device_state: int, data: bytes) -> int:
+        return AdsReturnCode.DEVICE_SERVICE_NOT_SUPPORTED
+
+    def read(self, group: int, offset: int, length: int) -> Outcome:
+        return AdsReturnCode.DEVICE_INVALID_GROUP, b""
+
+    def write(self, group: int, offset: int, data: bytes) -> int:
+        return AdsReturnCode.DEVICE_INVALID_GROUP
+
+    def read_write(self, group: int, offset: int, length: int, data: bytes) -> Outcome:
+        return AdsReturnCode.DEVICE_INVALID_GROUP, b""
+
+
+@dataclass(slots=True)
+class SystemServicePort(Port):
+    """Port 10000: the TwinCAT system's state; WriteControl starts/stops it."""
+
+    def write_control(self, ads_state: int, device_state: int, data: bytes) -> int:
+        if ads_state in (AdsState.RUN, AdsState.RESET):
+            self.run.running = True
+        elif ads_state in (AdsState.STOP, AdsState.CONFIG, AdsState.RECONFIG):
+            self.run.running = False
+        else:
+            return AdsReturnCode.DEVICE_INVALID_DATA
+        return AdsReturnCode.NO_ERROR
+
+
+@dataclass(slots=True)
+class IoServerPort(Port):
+    """Port 300: the list of I/O devices (facts section 6, catio)."""
+
+    devices: list[SimDevice] = field(default_factory=list)
+
+    def read(self, group: int, offset: int, length: int) -> Outcome:
+        base = IndexGroup.IO_SERVER_DEVICES
+        if group == base:
+            if offset == IoServerDeviceOffset.DEVICE_COUNT:
+                return fit(encode_device_count(len(self.devices)), length)
+            if offset == IoServerDeviceOffset.DEVICE_IDS:
+                return fit(
+                    encode_device_ids([d.device_id for d in self.devices]), length
+                )
+            return AdsReturnCode.DEVICE_INVALID_OFFSET, b""
+        device = next((d for d in self.devices if group == base + d.device_id), None)
+        if device is None:
+            return AdsReturnCode.DEVICE_INVALID_GROUP, b""
+        if offset == IoServerDeviceOffset.DEVICE_IDS:
+            return fit(encode_device_name(device.name), length)
+        if offset == IoServerDeviceOffset.DEVICE_NETID:
+            return fit(encode_device_netid(device.master.net_id), length)
+        if offset == IoServerDeviceOffset.DEVICE_TYPE:
+            return fit(encode_device_type(IO_DEVICE_TYPE_ETHERCAT), length)
+        return AdsReturnCode.DEVICE_INVALID_OFFSET, b""
+
+    def write(self, group: int, offset: int, data: bytes) -> int:
+        if self.read(group, offset, 0xFFFF)[0] == AdsReturnCode.DEVICE_INVALID_GROUP:
+            return AdsReturnCode.DEVICE_INVALID_GROUP
+        return AdsReturnCode.DEVICE_INVALID_ACCESS
+
+
+@dataclass(slots=True)
+class DevicePort(Port):
+    """Port 27904 + n: the device's symbols, handles and process images."""
+
+    device: SimDevice | None = None
+
+    @property
+    def dev(self) -> SimDevice:
+        assert self.device is not None
+        return self.device
+
+    def _area(self, group: int) -> tuple[ImageArea, bool] | None:
+        for area in AREAS:
+            if group == area.byte_group:
+                return area, False
+            if group == area.bit_group:
+                return area, True
+        return None
+
+    def read(self, group: int, offset: int, length: int) -> Outcome:
+        dev = self.dev
+        table = dev.table
+        match group:
+            case IndexGroup.SYM_UPLOAD_INFO:
+                return fit(table.upload_info, length)
+            case IndexGroup.SYM_UPLOAD_INFO_2:
+                return fit(table.upload_info2, length)
+            case IndexGroup.SYM_UPLOAD:
+                return fit(table.upload, length)
+            case IndexGroup.SYM_DT_UPLOAD:
+                return fit(table.data_types, length)
+            case IndexGroup.SYM_VERSION:
+                return fit(bytes([dev.version]), length)
+            case IndexGroup.SYM_VALUE_BY_HANDLE:
+                result, found = dev.handle(offset)
+                if found is None:
+                    return result, b""
+                return dev.read_resolved(found, length)
+        place = self._area(group)
+        if place is not None:
+            area, bits = place
+            if bits:
+                return dev.image.read_bit_bytes(area, offset, length)
+            return dev.image.read_bytes(area, offset, length)
+        for area in AREAS:
+            if group == area.size_group:
+                return fit(_U32.pack(dev.layout.size_of(area)), length)
+        if group in _WRITE_ONLY_GROUPS or group in _NAME_GROUPS:
+            return AdsReturnCode.DEVICE_SERVICE_NOT_SUPPORTED, b""
+        return AdsReturnCode.DEVICE_INVALID_GROUP, b""
+
+    def write(self, group: int, offset: int, data: bytes) -> int:
+        dev = self.dev
+        match group:
+            case IndexGroup.SYM_VALUE_BY_HANDLE:
+                result, found = dev.handle(offset)
+                if found is None:
+                    return result
+                return dev.write_resolved(found, data)
+            case IndexGroup.SYM_RELEASE_HANDLE:
+                if len(data) != 4:
+                    return AdsReturnCode.DEVICE_INVALID_SIZE
+                return dev.release_handle(_U32.unpack(data)[0])
+            case IndexGroup.IO_IMAGE_CLEAR_INPUTS | IndexGroup.IO_IMAGE_CLEAR_OUTPUTS:
+                area = (
+                    AREAS[1] if group == IndexGroup.IO_IMAGE_CLEAR_INPUTS else AREAS[0]
+                )
+                buffer = dev.image.buffer(area)
+                buffer[:] = bytes(len(buffer))
+                return AdsReturnCode.NO_ERROR
+        place = self._area(group)
+        if place is not None:
+            area, bits = place
+            if bits:
+                return dev.image.write_bit_bytes(area, offset, data)
+            return dev.image.write_bytes(area, offset, data)
+        if group in _READ_ONLY_GROUPS or any(group == a.size_group for a in AREAS):
+            return AdsReturnCode.DEVICE_INVALID_ACCESS
+        if group in _NAME_GROUPS:
+            return AdsReturnCode.DEVICE_SERVICE_NOT_SUPPORTED
+        return AdsReturnCode.DEVICE_INVALID_GROUP
+
+    def read_write(self, group: int, offset: int, length: int, data: bytes) -> Outcome:
+        dev = self.dev
+        match group:
+            case IndexGroup.SYM_HANDLE_BY_NAME:
+                found = dev.resolve(request_name(data))
+                if found is None:
+                    return AdsReturnCode.DEVICE_SYMBOL_NOT_FOUND, b""
+                if length < 4:
+                    return AdsReturnCode.DEVICE_INVALID_SIZE, b""
+                return AdsReturnCode.NO_ERROR, _U32.pack(dev.new_handle(found))
+            case IndexGroup.SYM_VALUE_BY_NAME:
+                found = dev.resolve(request_name(data))
+                if found is None:
+                    return AdsReturnCode.DEVICE_SYMBOL_NOT_FOUND, b""
+                return dev.read_resolved(found, length)
+            case IndexGroup.SYM_INFO_BY_NAME_EX:
+                found = dev.resolve(request_name(data))
+                if found is None:
+                    return AdsReturnCode.DEVICE_SYMBOL_NOT_FOUND, b""
+                return fit(found.entry().encode(), length)
+            case IndexGroup.SYM_INFO_BY_NAME:
+                found = dev.resolve(request_name(data))
+                if found is None:
+                    return AdsReturnCode.DEVICE_SYMBOL_NOT_FOUND, b""
+                info = struct.pack(
+                    "<III", found.index_group, found.index_offset, found.size
+                )
+                return fit(info, length)
+            case IndexGroup.SUMUP_READ:
+                return self._sum_read(offset, length, data)
+            case IndexGroup.SUMUP_WRITE:
+                if not dev.sum_write:
+                    return AdsReturnCode.DEVICE_SERVICE_NOT_SUPPORTED, b""
+                return self._sum_write(offset, length, data)
+            case IndexGroup.SUMUP_READ_WRITE:
+                return self._sum_read_write(offset, length, data)
+        if group in _SUM_GROUPS:
+            return AdsReturnCode.DEVICE_SERVICE_NOT_SUPPORTED, b""
+        if self.read(group, 0, 0)[0] != AdsReturnCode.DEVICE_INVALID_GROUP:
+            return AdsReturnCode.DEVICE_SERVICE_NOT_SUPPORTED, b""
+        return AdsReturnCode.DEVICE_INVALID_GROUP, b""
+
+    # -- sum commands ---------------------------------------------------------
+
+    def _too_many(self, count: int) -> bool:
+        """More sub-commands than the limit (500): the whole request is refused."""
+        return count > self.dev.max_sum_items or count == 0
+
+    def _sum_read(self, count: int, length: int, data: bytes) -> Outcome:
+        if self._too_many(count):
+            return AdsReturnCode.DEVICE_INVALID_SIZE, b""
+        try:
+            request = SumReadRequest.decode(data, count)
+        except AdsCodecError as error:
+            return error.return_code, b""
+        if length < request.read_length:
+            return AdsReturnCode.DEVICE_INVALID_SIZE, b""
+        image = self.dev.image
+        # The hot path: plain slices of the images, single bits by lookup.
+        areas = {area.byte_group: image.buffer(area) for area in AREAS}
+        bits = {area.bit_group: image.buffer(area) for area in AREAS}
+        outcomes = [
+            _slice(areas[i.index_group], i.index_offset, i.length)
+            if i.index_group in areas
+            else _bit(bits[i.index_group], i.index_offset)
+            if i.length == 1 and i.index_group in bits
+            else self._sub_read(i.index_group, i.index_offset, i.length)
+            for i in request.items
+        ]
+        return AdsReturnCode.NO_ERROR, SumReadResponse.for_items(
+            request.items, outcomes
+        ).encode()
+
+    def _sub_read(self, group: int, offset: int, length: int) -> Outcome:
+        if group in _SUM_GROUPS:
+            return AdsReturnCode.DEVICE_SERVICE_NOT_SUPPORTED, b""
+        result, value = self.read(group, offset, length)
+        return (
+            (result, value)
+            if len(value) <= length
+            else (AdsReturnCode.DEVICE_INVALID_SIZE, b"")
+        )
+
+    def _sum_write(self, count: int, length: int, data: bytes) -> Outcome:
+        if self._too_many(count):
+            return AdsReturnCode.DEVICE_INVALID_SIZE, b""
+        try:
+            request = SumWriteRequest.decode(data, count)
+        except AdsCodecError as error:
+            return error.return_code, b""
+        if length < request.read_length:
+            return AdsReturnCode.DEVICE_INVALID_SIZE, b""
+        results = tuple(
+            AdsReturnCode.DEVICE_SERVICE_NOT_SUPPORTED
+            if item.index_group in _SUM_GROUPS
+            else self.write(item.index_group, item.index_offset, item.data)
+            for item in request.items
+        )
+        return AdsReturnCode.NO_ERROR, SumWriteResponse(results).encode()
+
+    def _sum_read_write(self, count: int, length: int, data: bytes) -> Outcome:
+        if self._too_many(count):
+            return AdsReturnCode.DEVICE_INVALID_SIZE, b""
+        try:
+            request = SumReadWriteRequest.decode(data, count)
+        except AdsCodecError as error:
+            return error.return_code, b""
+        results: list[int] = []
+        values: list[bytes] = []
+        for item in request.items:
+            if item.index_group in _SUM_GROUPS:
+                result, value = AdsReturnCode.DEVICE_SERVICE_NOT_SUPPORTED, b""
+            else:
+                result, value = self.read_write(
+                    item.index_group, item.index_offset, item.read_length, item.data
+                )
+            results.append(result)
+            values.append(value if result == AdsReturnCode.NO_ERROR else b"")
+        answer = SumReadWriteResponse(tuple(results), tuple(values)).encode()
+        return fit(answer, length)
+
+
+@dataclass(slots=True)
+class MasterPort(Port):
+    """Port 0xFFFF of a device NetId: the EtherCAT master."""
+
+    device: SimDevice | None = None
+
+    def read(self, group: int, offset: int, length: int) -> Outcome:
+        assert self.device is not None
+        return self.device.ethercat.read(group, offset, length)
+
+    def write(self, group: int, offset: int, data: bytes) -> int:
+        assert self.device is not None
+        result = self.device.ethercat.write(group, offset, data)
+        self.device.refresh_states()
+        return result
+
+
+@dataclass(slots=True)
+class SlavePort(Port):
+    """A slave's port (its EtherCAT address): the CoE mailbox."""
+
+    device: SimDevice | None = None
+    runtime: SlaveRuntime | None = None
+
+    def read_state(self) -> tuple[int, int]:
+        assert self.runtime is not None
+        return self.run.ads_state, self.runtime.state
+
+    def read(self, group: int, offset: int, length: int) -> Outcome:
+        assert self.device is not None and self.runtime is not None
+        return self.device.ethercat.slave_read(self.runtime, group, offset, length)
+
+    def write(self, group: int, offset: int, data: bytes) -> int:
+        assert self.device is not None and self.runtime is not None
+        return self.device.ethercat.slave_write(self.runtime, group, offset, data)
+
+
+def _slice(buffer: bytearray, offset: int, length: int) -> Outcome:
+    """A byte-group sub-read of a sum read, without the general dispatch."""
+    end = offset + length
+    if end > len(buffer):
+        if offset > len(buffer):
+            return AdsReturnCode.DEVICE_INVALID_OFFSET, b""
+        return AdsReturnCode.DEVICE_INVALID_SIZE, b""
+    return AdsReturnCode.NO_ERROR, bytes(buffer[offset:end])
+
+
+def _bit(buffer: bytearray, bit_offset: int) -> Outcome:
+    """A one-bit sub-read of a sum read (one byte, 0 or 1)."""
+    if bit_offset >= 8 * len(buffer):
+        return AdsReturnCode.DEVICE_INVALID_OFFSET, b""
+    return AdsReturnCode.NO_ERROR, _BIT_BYTES[
+        buffer[bit_offset >> 3] >> (bit_offset & 7) & 1
+    ]
+
+
+_BIT_BYTES: Final = (b"\x00", b"\x01")
+_READ_ONLY_GROUPS: Final = frozenset(
+    {
+        IndexGroup.SYM_UPLOAD_INFO,
+        IndexGroup.SYM_UPLOAD_INFO_2,
+        IndexGroup.SYM_UPLOAD,
+        IndexGroup.SYM_DT_UPLOAD,
+        IndexGroup.SYM_VERSION,
+    }
+)
+_WRITE_ONLY_GROUPS: Final = frozenset(
+    {
+        IndexGroup.SYM_RELEASE_HANDLE,
+        IndexGroup.IO_IMAGE_CLEAR_INPUTS,
+        IndexGroup.IO_IMAGE_CLEAR_OUTPUTS,
+    }
+)
+_NAME_GROUPS: Final = frozenset(
+    {
+        IndexGroup.SYM_HANDLE_BY_NAME,
+        IndexGroup.SYM_VALUE_BY_NAME,
+        IndexGroup.SYM_INFO_BY_NAME,
+        IndexGroup.SYM_INFO_BY_NAME_EX,
+        *_SUM_GROUPS,
+    }
+)
+
+
+__all__ = [
+    "DevicePort",
+    "IoServerPort",
+    "MasterPort",
+    "Port",
+    "RunState",
+    "SlavePort",
+    "SystemServicePort",
+    "fit",
+    "request_name",
+]

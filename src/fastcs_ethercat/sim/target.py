@@ -1,0 +1,392 @@
+"""`SimTarget`: a whole simulated TwinCAT system behind one `handle(packet)`.
+
+The I/O layer (server, notifications, control API) feeds it decoded AMS
+packets and sends back what it returns; it never blocks and never touches a
+socket. See `sim/__init__.py` for the interface and the behaviour.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Collection, Mapping
+from pathlib import Path
+from typing import Any, Final
+
+from fastcs_ethercat.ads.commands import (
+    AdsRequest,
+    ReadDeviceInfoRequest,
+    ReadRequest,
+    ReadResponse,
+    ReadStateRequest,
+    ReadStateResponse,
+    ReadWriteRequest,
+    ReadWriteResponse,
+    WriteControlRequest,
+    WriteControlResponse,
+    WriteRequest,
+    WriteResponse,
+    decode_request,
+    error_response,
+)
+from fastcs_ethercat.ads.constants import (
+    AdsReturnCode,
+    AmsCommand,
+    AmsPort,
+    device_port,
+)
+from fastcs_ethercat.ads.errors import AdsCodecError
+from fastcs_ethercat.ads.ethercat import AlState
+from fastcs_ethercat.ads.frames import AmsPacket
+from fastcs_ethercat.ads.netid import AmsAddress, AmsNetId
+from fastcs_ethercat.sim.chain import Chain, SystemSpec, load_chain
+from fastcs_ethercat.sim.device import SimDevice
+from fastcs_ethercat.sim.resolve import ResolvedSlave, registry_for, resolve_chain
+from fastcs_ethercat.sim.services import (
+    DEVICE_PORT_NAME,
+    IO_SERVER_NAME,
+    MASTER_PORT_NAME,
+    SYSTEM_SERVICE_NAME,
+    DevicePort,
+    IoServerPort,
+    MasterPort,
+    Port,
+    RunState,
+    SlavePort,
+    SystemServicePort,
+)
+from fastcs_ethercat.terminals.registry import TerminalRegistry
+
+_GROUP_COMMANDS: Final = (ReadRequest, WriteRequest, ReadWriteRequest)
+_AL_STATES: Final = {state.name: int(state) for state in AlState}
+
+
+class SimTarget:
+    """A TwinCAT system: I/O server, EtherCAT masters, devices and slaves."""
+
+    def __init__(
+        self,
+        chain: Chain,
+        terminals: TerminalRegistry | Path | str,
+        seed: int = 0,
+    ) -> None:
+        self.chain = chain
+        self.seed = seed
+        system: SystemSpec = chain.system
+        self.system_net_id, masters = resolve_chain(chain, terminals)
+        self.cycle_s = system.task_cycle_ms / 1000.0
+        self.run = RunState()
+        self.devices = [
+            SimDevice(
+                master,
+                seed=seed,
+                cycle_s=self.cycle_s,
+                max_sum_items=system.max_sum_items,
+                sum_write=system.sum_write_on_device_port,
+            )
+            for master in masters
+        ]
+        self._check_signals()
+        self.net_ids: set[AmsNetId] = {self.system_net_id}
+        self.net_ids.update(device.master.net_id for device in self.devices)
+        self._ports: dict[AmsAddress, Port] = {}
+        self._route()
+        self._forced: tuple[int, int | None] | None = None
+        self._start: float | None = None
+        self._cycle = -1
+
+    @classmethod
+    def from_chain(
+        cls,
+        chain: Chain | Path | str,
+        terminals_dir: TerminalRegistry | Path | str | None = None,
+        seed: int = 0,
+    ) -> SimTarget:
+        """Build from a chain (or a chain file) and the terminal YAML directory
+        (default: `terminals/` in the current directory, else next to the
+        chain file's directory, as in the repository)."""
+        if not isinstance(chain, Chain):
+            chain = load_chain(chain)
+        if terminals_dir is None:
+            terminals_dir = _default_terminals(chain)
+        terminals = (
+            terminals_dir
+            if isinstance(terminals_dir, TerminalRegistry)
+            else registry_for(
+                terminals_dir,
+                {slave.type for master in chain.masters for slave in master.slaves},
+            )
+        )
+        return cls(chain, terminals, seed)
+
+    def _check_signals(self) -> None:
+        """A `signals` name that drives nothing is a typo: say where."""
+        for m, device in enumerate(self.devices):
+            for position, name in device.unmatched_signals():
+                slave = device.master.slaves[position]
+                raise self.chain.error(
+                    ("masters", m, "slaves", position, "signals", name),
+                    f"{slave.name} has no input symbol or member {name!r}",
+                )
+
+    def _route(self) -> None:
+        system = self.system_net_id
+        ports: dict[AmsAddress, Port] = {
+            AmsAddress(system, AmsPort.IO_SERVER): IoServerPort(
+                self.run, IO_SERVER_NAME, list(self.devices)
+            ),
+            AmsAddress(system, AmsPort.SYSTEM_SERVICE): SystemServicePort(
+                self.run, SYSTEM_SERVICE_NAME
+            ),
+        }
+        for device in self.devices:
+            ports[AmsAddress(system, device_port(device.device_id))] = DevicePort(
+                self.run, DEVICE_PORT_NAME, device
+            )
+            net_id = device.master.net_id
+            ports[AmsAddress(net_id, AmsPort.ETHERCAT_MASTER)] = MasterPort(
+                self.run, MASTER_PORT_NAME, device
+            )
+            for runtime in device.ethercat.slaves:
+                ports[AmsAddress(net_id, runtime.slave.address)] = SlavePort(
+                    self.run, runtime.slave.type_name, device, runtime
+                )
+        self._ports = ports
+
+    # -- the ADS entry points -------------------------------------------------
+
+    def handle(self, packet: AmsPacket) -> AmsPacket | None:
+        """The response to one request (None for packets that get none)."""
+        if packet.is_response or packet.command == AmsCommand.DEVICE_NOTIFICATION:
+            return None
+        if packet.target.netid not in self.net_ids:
+            return packet.response(error_code=AdsReturnCode.TARGET_MACHINE_NOT_FOUND)
+        port = self._ports.get(packet.target)
+        if port is None:
+            return packet.response(error_code=AdsReturnCode.TARGET_PORT_NOT_FOUND)
+        command = int(packet.command)
+        try:
+            request = decode_request(command, packet.payload)
+        except AdsCodecError as error:
+            return self._error(packet, error.return_code)
+        forced = self._forced_error(request)
+        if forced:
+            return self._error(packet, forced)
+        return packet.response(payload=self._serve(port, request).encode())
+
+    def read(
+        self, address: AmsAddress, group: int, offset: int, length: int
+    ) -> tuple[int, bytes]:
+        """(result, data) of a Read, for notifications sampled by the I/O layer."""
+        port = self._ports.get(address)
+        if port is None:
+            return AdsReturnCode.TARGET_PORT_NOT_FOUND, b""
+        if self._forced is not None and self._forced[1] in (None, group):
+            return self._forced[0], b""
+        return port.read(group, offset, length)
+
+    def _error(self, packet: AmsPacket, code: int) -> AmsPacket:
+        try:
+            payload = error_response(int(packet.command), code).encode()
+        except AdsCodecError:
+            return packet.response(error_code=code)
+        return packet.response(payload=payload)
+
+    def _forced_error(self, request: AdsRequest) -> int:
+        if self._forced is None:
+            return 0
+        code, group = self._forced
+        if group is None:
+            return code
+        if isinstance(request, _GROUP_COMMANDS) and request.index_group == group:
+            return code
+        return 0
+
+    def _serve(self, port: Port, request: AdsRequest) -> Any:
+        if isinstance(request, ReadRequest):
+            result, data = port.read(
+                request.index_group, request.index_offset, request.length
+            )
+            return ReadResponse(result, data if result == 0 else b"")
+        if isinstance(request, WriteRequest):
+            return WriteResponse(
+                port.write(
+                    request.index_group, request.index_offset, bytes(request.data)
+                )
+            )
+        if isinstance(request, ReadWriteRequest):
+            result, data = port.read_write(
+                request.index_group,
+                request.index_offset,
+                request.read_length,
+                bytes(request.data),
+            )
+            return ReadWriteResponse(result, data if result == 0 else b"")
+        if isinstance(request, ReadStateRequest):
+            ads_state, device_state = port.read_state()
+            return ReadStateResponse(AdsReturnCode.NO_ERROR, ads_state, device_state)
+        if isinstance(request, ReadDeviceInfoRequest):
+            return port.device_info()
+        if isinstance(request, WriteControlRequest):
+            return WriteControlResponse(
+                port.write_control(
+                    request.ads_state, request.device_state, request.data
+                )
+            )
+        # Notifications are the I/O layer's; nothing else reaches a port.
+        return error_response(
+            int(request.command), AdsReturnCode.DEVICE_SERVICE_NOT_SUPPORTED
+        )
+
+    # -- the task cycle --------------------------------------------------------
+
+    def tick(self, now: float) -> None:
+        """Advance the I/O task to `now` (seconds, monotonic): inputs of every
+        exchanging slave move to the values of the current cycle."""
+        if self._start is None:
+            self._start = now
+        if not self.run.running:
+            return
+        cycle = math.floor((now - self._start) / self.cycle_s + 1e-9)
+        if cycle <= self._cycle:
+            return
+        self._cycle = cycle
+        for device in self.devices:
+            device.tick(cycle)
+
+    @property
+    def cycle(self) -> int:
+        """The task cycle the inputs show (0 before the first tick)."""
+        return max(self._cycle, 0)
+
+    # -- faults and control ----------------------------------------------------
+
+    def set_slave_state(
+        self,
+        address_or_name: int | str | None,
+        state: int | str,
+        device: int | None = None,
+    ) -> None:
+        """Put one slave (by EtherCAT address or TwinCAT name; None: every
+        slave) into INIT, PREOP, BOOT, SAFEOP or OP (or a raw state byte)."""
+        value = _AL_STATES[state.upper()] if isinstance(state, str) else int(state)
+        for owner, slave in self._select(address_or_name, device):
+            runtime = owner.ethercat.slaves[slave.position]
+            runtime.state = value
+            owner.refresh_states()
+
+    def set_link_lost(
+        self, address_or_name: int | str | None, lost: bool, device: int | None = None
+    ) -> None:
+        """Lose (or restore) one slave's link (None: every slave)."""
+        for owner, slave in self._select(address_or_name, device):
+            owner.ethercat.slaves[slave.position].lost = lost
+            owner.refresh_states()
+
+    def online_change(self, pdo_groups: Mapping[str, str] | None = None) -> None:
+        """Activate a new configuration on every device: symbol version +1,
+        offsets move, old handles answer 0x711. `pdo_groups` (slave name ->
+        group) switches PDO groups at the same time."""
+        remaining = dict(pdo_groups or {})
+        for device in self.devices:
+            mine = {
+                name: group
+                for name, group in remaining.items()
+                if device.slave(name) is not None
+            }
+            for name in mine:
+                remaining.pop(name)
+            device.online_change(mine)
+        if remaining:
+            raise KeyError(f"no slaves called {sorted(remaining)}")
+        self._route()
+
+    def set_run_state(self, running: bool) -> None:
+        """RUN (ReadState 5, inputs move) or STOP (ReadState 6, frozen)."""
+        self.run.running = running
+        for device in self.devices:
+            device.ethercat.running = running
+
+    def force_error(self, code: int, group: int | None = None) -> None:
+        """Answer every request (or those for one index group) with `code`."""
+        self._forced = (int(code), group)
+
+    def clear_faults(self) -> None:
+        """Back to normal: no forced error, running, slaves in their chain
+        states with links up, every input driven by its generator again."""
+        self._forced = None
+        self.set_run_state(True)
+        for device in self.devices:
+            device.ethercat.reset()
+            device.unpin_all()
+            device.refresh_states()
+
+    def get_symbol_value(self, name: str, device: int | None = None) -> Any:
+        """A value by TwinCAT symbol name (members and elements too)."""
+        return self._device_of(name, device).get_value(name)
+
+    def set_symbol_value(
+        self, name: str, value: Any, device: int | None = None
+    ) -> None:
+        """Set a value by name; an input keeps it until `clear_faults`."""
+        self._device_of(name, device).set_value(name, value)
+
+    def describe(self) -> dict[str, Any]:
+        """What the simulator plays, for a ready line and the control API."""
+        masters = [
+            {
+                "name": device.name,
+                "device_id": device.device_id,
+                "net_id": str(device.master.net_id),
+                "ads_port": device_port(device.device_id),
+                "slaves": len(device.master.slaves),
+                "symbols": len(device.table),
+                "symbol_version": device.version,
+            }
+            for device in self.devices
+        ]
+        return {
+            "net_id": str(self.system_net_id),
+            "masters": masters,
+            "slaves": sum(m["slaves"] for m in masters),
+            "symbols": sum(m["symbols"] for m in masters),
+            "running": self.run.running,
+            "cycle": self.cycle,
+        }
+
+    # -- helpers -------------------------------------------------------------------
+
+    def _select(
+        self, address_or_name: int | str | None, device: int | None
+    ) -> list[tuple[SimDevice, ResolvedSlave]]:
+        chosen = [d for d in self.devices if device is None or d.device_id == device]
+        if device is not None and not chosen:
+            raise KeyError(f"no device {device}")
+        if address_or_name is None:
+            return [(d, s) for d in chosen for s in d.master.slaves]
+        for owner in chosen:
+            slave = owner.slave(address_or_name)
+            if slave is not None:
+                return [(owner, slave)]
+        raise KeyError(f"no slave {address_or_name!r}")
+
+    def _device_of(self, name: str, device: int | None) -> SimDevice:
+        chosen = [d for d in self.devices if device is None or d.device_id == device]
+        for owner in chosen:
+            if owner.resolve(name) is not None:
+                return owner
+        raise KeyError(f"no symbol {name!r}")
+
+    @property
+    def addresses(self) -> Collection[AmsAddress]:
+        """Every AMS address that answers (the rest answer AMS error 0x6)."""
+        return self._ports.keys()
+
+
+def _default_terminals(chain: Chain) -> Path:
+    here = Path("terminals")
+    if here.is_dir() or chain.source is None:
+        return here
+    return Path(chain.source).resolve().parent.parent / "terminals"
+
+
+__all__ = ["SimTarget"]

@@ -1,0 +1,83 @@
+"""Several pyads clients in separate processes at once, each with its own
+AdsLib router and TCP connection: every one sees only its own answers and
+its own notifications."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+import yaml
+
+from fastcs_ethercat.sim.process import SimProcess
+from tests.conftest import REPO_ROOT
+
+NET_ID = "192.0.2.62.1.1"
+CLIENTS = 3
+
+CLIENT_SCRIPT = r"""
+import json, sys, time
+import pyads
+
+address, net_id, index = sys.argv[1], sys.argv[2], int(sys.argv[3])
+name = f"Term 6 (EL2024).Channel {index + 1}"
+pattern = [(step + index) % 2 == 1 for step in range(8)]
+plc = pyads.Connection(net_id, 27905, address)
+plc.open()
+plc.set_timeout(5000)
+seen = []
+attr = pyads.NotificationAttrib(1, trans_mode=pyads.ADSTRANS_SERVERONCHA,
+                                max_delay=0, cycle_time=1)
+handles = plc.add_device_notification(
+    name, attr,
+    lambda n, _: seen.append(plc.parse_notification(n, pyads.PLCTYPE_BOOL)[::2]))
+reads = []
+for value in pattern:
+    plc.write_by_name(name, value, pyads.PLCTYPE_BOOL)
+    reads.append(plc.read_by_name(name, pyads.PLCTYPE_BOOL))
+    time.sleep(0.05)
+time.sleep(0.1)
+plc.del_device_notification(*handles)
+plc.close()
+print(json.dumps({"handle": handles[0], "pattern": pattern, "reads": reads,
+                  "seen": seen}))
+"""
+
+
+@pytest.fixture(scope="module")
+def sim(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SimProcess]:
+    chain = yaml.safe_load((REPO_ROOT / "ioc" / "demo-chain.yaml").read_text())
+    chain["system"]["net_id"] = NET_ID
+    path: Path = tmp_path_factory.mktemp("chain") / "chain.yaml"
+    path.write_text(yaml.safe_dump(chain, sort_keys=False))
+    with SimProcess(path, terminals=REPO_ROOT / "terminals") as sim:
+        yield sim
+
+
+def test_clients_in_separate_processes_get_only_their_own(sim: SimProcess) -> None:
+    processes = [
+        subprocess.Popen(
+            [sys.executable, "-c", CLIENT_SCRIPT, sim.pyads_ip, NET_ID, str(index)],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        for index in range(CLIENTS)
+    ]
+    results = []
+    for process in processes:
+        out, err = process.communicate(timeout=60)
+        assert process.returncode == 0, err
+        results.append(json.loads(out))
+    assert sim.counters()["connections_accepted"] >= CLIENTS
+    handles = {result["handle"] for result in results}
+    assert len(handles) == CLIENTS
+    for result in results:
+        assert result["reads"] == result["pattern"]
+        assert {handle for handle, _ in result["seen"]} == {result["handle"]}
+        values = [value for _, value in result["seen"]]
+        assert values == result["pattern"] or values[1:] == result["pattern"]

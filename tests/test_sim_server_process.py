@@ -1,0 +1,166 @@
+"""`fastcs-ethercat sim` as a process: ready line, control API, clean stop."""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from fastcs_ethercat.sim.process import SimProcess, SimProcessError
+from fastcs_ethercat.sim.runner import READY_PREFIX, parse_ready_line
+from tests.conftest import REPO_ROOT
+
+DEMO_CHAIN = REPO_ROOT / "ioc" / "demo-chain.yaml"
+CLI = [sys.executable, "-c", "from fastcs_ethercat.cli import app; app()", "sim"]
+
+
+@pytest.fixture(scope="module")
+def sim() -> Iterator[SimProcess]:
+    with SimProcess(DEMO_CHAIN) as sim:
+        yield sim
+
+
+def test_ready_line_names_net_id_and_ports(sim: SimProcess) -> None:
+    assert sim.net_id.count(".") == 5
+    assert sim.host == "127.0.0.1"
+    assert sim.tcp_port > 0 and sim.udp_port > 0
+    assert sim.control_url.startswith("http://127.0.0.1:")
+    status = sim.status()
+    assert status["net_id"] == sim.net_id
+    assert status["tcp_port"] == sim.tcp_port
+
+
+def test_control_api_over_http(sim: SimProcess) -> None:
+    before = sim.reset_counters()
+    assert before["total"] == 0
+    assert sim.add_fault("stall", seconds=0.1)["applied"] == {
+        "kind": "stall",
+        "seconds": 0.1,
+    }
+    assert sim.clear_faults() == {"active": []}
+    with pytest.raises(SimProcessError, match="404"):
+        sim.get_symbol("No such symbol")
+    value = "Term 22 (EL3104).AI Standard Channel 1.Value"
+    assert sim.set_symbol(value, 4321) == 4321
+    channel = sim.get_symbol("Term 22 (EL3104).AI Standard Channel 1")
+    assert channel["Value"] == 4321
+    assert set(channel["Status"]) >= {"Underrange", "Overrange", "Error"}
+    with pytest.raises(SimProcessError, match="400"):
+        sim.set_symbol(value, "not a number")
+    assert sim.counters()["total"] == 0  # the control API is not ADS
+
+
+def test_sigint_and_sigterm_stop_cleanly() -> None:
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        process = SimProcess(DEMO_CHAIN)
+        process.start()
+        assert process.returncode is None
+        process._process.send_signal(signum)  # type: ignore[union-attr]
+        assert process._process.wait(10) == 0  # type: ignore[union-attr]
+        process.stop()
+
+
+def test_cli_prints_the_ready_line_with_default_host() -> None:
+    args = [*CLI, "--chain", str(DEMO_CHAIN), "--port", "0", "--udp-port", "0"]
+    process = subprocess.Popen(args, stdout=subprocess.PIPE, text=True)
+    try:
+        assert process.stdout is not None
+        line = process.stdout.readline().strip()
+        assert line.startswith(READY_PREFIX)
+        fields = parse_ready_line(line)
+        assert fields["tcp"].startswith("127.0.0.1:")
+        assert fields["udp"].startswith("127.0.0.1:")
+        assert fields["control"] == "off"
+    finally:
+        process.send_signal(signal.SIGTERM)
+        assert process.wait(10) == 0
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--chain", "no-such-chain.yaml"], "no-such-chain.yaml"),
+        (["--chain", str(DEMO_CHAIN), "--port", "70000"], "--port"),
+        (["--chain", str(DEMO_CHAIN), "--terminals", "no-such-dir"], "no-such-dir"),
+    ],
+)
+def test_bad_arguments_give_one_line_and_exit_2(
+    args: list[str], message: str, tmp_path: Path
+) -> None:
+    done = subprocess.run([*CLI, *args], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 2
+    assert "Traceback" not in done.stderr
+    (line,) = done.stderr.strip().splitlines()
+    assert line.startswith("error: ")
+    assert message in line
+
+
+def test_busy_port_is_a_user_error() -> None:
+    with SimProcess(DEMO_CHAIN) as first:
+        args = [*CLI, "--chain", str(DEMO_CHAIN), "--port", str(first.tcp_port)]
+        done = subprocess.run(
+            [*args, "--udp-port", "0"], capture_output=True, text=True, timeout=60
+        )
+    assert done.returncode == 2
+    assert done.stderr.startswith("error: cannot listen")
+    assert "Traceback" not in done.stderr
+
+
+def test_a_bad_chain_file_is_one_line(tmp_path: Path) -> None:
+    chain = tmp_path / "bad.yaml"
+    chain.write_text("masters: [}\n")
+    done = subprocess.run(
+        [*CLI, "--chain", str(chain), "--port", "0", "--udp-port", "0"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert done.returncode == 2
+    assert done.stderr.count("\n") == 1
+    assert "bad.yaml" in done.stderr
+
+
+def test_sim_process_reports_a_simulator_that_never_gets_ready(tmp_path: Path) -> None:
+    with pytest.raises(SimProcessError, match="did not get ready"):
+        SimProcess(tmp_path / "missing.yaml", ready_timeout=30).start()
+
+
+PARENT_SCRIPT = """
+import sys, time
+from fastcs_ethercat.sim.process import SimProcess
+sim = SimProcess(sys.argv[1])
+sim.start()
+print(sim.pid, flush=True)
+time.sleep(60)
+"""
+
+
+def _alive(pid: int) -> bool:
+    """True while `pid` runs (a zombie waiting for its reaper counts as gone)."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except FileNotFoundError:
+        return False
+    return fields[0] != "Z"
+
+
+def test_the_simulator_follows_a_parent_that_dies_without_cleaning_up() -> None:
+    parent = subprocess.Popen(
+        [sys.executable, "-c", PARENT_SCRIPT, str(DEMO_CHAIN)],
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    assert parent.stdout is not None
+    sim_pid = int(parent.stdout.readline())
+    assert _alive(sim_pid)
+    parent.send_signal(signal.SIGKILL)
+    parent.wait(10)
+    deadline = time.monotonic() + 10
+    while _alive(sim_pid) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not _alive(sim_pid)
