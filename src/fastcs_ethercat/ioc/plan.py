@@ -78,6 +78,10 @@ class SlaveInfo:
     serial: int = 0
     coupler: str | None = None  # TwinCAT name of the coupler it hangs off
     position: int = 0  # bus order, 0-based
+    type_name: str = ""  # TwinCAT's type of the slave (master CoE 0x8000+n:02)
+    al_state: int = 0  # raw AL state byte at discovery (0x08 = OP)
+    link_state: int = 0  # raw link-state byte at discovery (0 = fine)
+    is_coupler: bool = False  # starts a segment (EK1100, EK1122, ...)
 
 
 @dataclass(slots=True)

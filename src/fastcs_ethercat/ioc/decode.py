@@ -1,0 +1,265 @@
+"""The hot path's bookkeeping: points -> sum-read items -> one numpy view.
+
+Points that share bytes (bits of one status word, a member inside a symbol
+that is read anyway, the WcState bit many terminals share) are served by one
+sum-read item. Each request's answer is viewed with one structured dtype (a
+field per point, at the point's byte in the answer); change detection compares
+the answer's bytes with the previous answer's, vectorised, and only changed
+points are converted to Python values.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from fastcs_ethercat.ads.constants import MAX_SUM_SUB_COMMANDS
+from fastcs_ethercat.ads.errors import AdsCodecError
+from fastcs_ethercat.ads.sums import SumReadItem
+from fastcs_ethercat.ads.values import parse_type, structured_dtype
+from fastcs_ethercat.ioc.plan import Point, PointKind
+
+
+def plan_items(
+    points: Sequence[Point],
+) -> tuple[list[SumReadItem], list[tuple[int, int]]]:
+    """Merge overlapping byte ranges per group into sum-read items.
+
+    Returns the items and, per point, (item index, byte offset in the item).
+    """
+    order = sorted(
+        range(len(points)),
+        key=lambda i: (points[i].index_group, points[i].index_offset),
+    )
+    items: list[SumReadItem] = []
+    where: list[tuple[int, int]] = [(0, 0)] * len(points)
+    group = start = end = -1
+    members: list[int] = []
+
+    def close() -> None:
+        if members:
+            items.append(SumReadItem(group, start, end - start))
+            for i in members:
+                where[i] = (len(items) - 1, points[i].index_offset - start)
+
+    for i in order:
+        point = points[i]
+        size = max(point.byte_size, 1)
+        if point.index_group == group and point.index_offset < end:
+            end = max(end, point.index_offset + size)
+            members.append(i)
+            continue
+        close()
+        group, start, end = (
+            point.index_group,
+            point.index_offset,
+            point.index_offset + size,
+        )
+        members = [i]
+    close()
+    return items, where
+
+
+def point_dtype(point: Point) -> np.dtype[Any]:
+    """The numpy dtype of a point's bytes (BIT/BITS: the bytes that hold it)."""
+    if point.kind in (PointKind.BIT, PointKind.BITS):
+        return np.dtype(("u1", (max(point.byte_size, 1),)))
+    parsed = parse_type(point.type_name)
+    if point.kind is PointKind.ARRAY:
+        return np.dtype((parsed.dtype, (point.length,)))
+    if parsed.size != point.byte_size:
+        return np.dtype(("u1", (point.byte_size,)))
+    return parsed.dtype
+
+
+@dataclass(slots=True)
+class ChunkDecoder:
+    """One sum request: its items, its answer layout and the previous answer."""
+
+    items: list[SumReadItem]
+    points: list[Point]
+    point_items: npt.NDArray[np.intp]
+    """Per point: its item's index within this request."""
+    dtype: np.dtype[Any]
+    starts: npt.NDArray[np.intp]
+    ends: npt.NDArray[np.intp]
+    bit_index: npt.NDArray[np.intp]
+    """Points of kind BIT/BITS, and for them: byte, shift and mask."""
+    bit_byte: npt.NDArray[np.intp]
+    bit_shift: npt.NDArray[np.uint64]
+    bit_mask: npt.NDArray[np.uint64]
+    answer_size: int
+    previous: npt.NDArray[np.uint8] | None = None
+    previous_results: npt.NDArray[np.uint32] | None = None
+    previous_bits: npt.NDArray[np.uint64] | None = None
+    converters: list[Any] = field(default_factory=list)
+    bit_position: dict[int, int] = field(default_factory=dict)
+
+    @classmethod
+    def build(
+        cls,
+        items: list[SumReadItem],
+        points: list[Point],
+        point_items: list[int],
+        offsets_in_item: list[int],
+    ) -> ChunkDecoder:
+        count = len(items)
+        item_starts = np.zeros(count, dtype=np.intp)
+        position = 4 * count
+        for n, item in enumerate(items):
+            item_starts[n] = position
+            position += item.length
+        starts = np.array(
+            [
+                item_starts[n] + o
+                for n, o in zip(point_items, offsets_in_item, strict=True)
+            ],
+            dtype=np.intp,
+        )
+        sizes = np.array([max(p.byte_size, 1) for p in points], dtype=np.intp)
+        fields: list[tuple[str, np.dtype[Any] | str, int]] = [
+            ("results", np.dtype(("<u4", (count,))), 0)
+        ]
+        fields += [
+            (f"p{i}", point_dtype(p), int(starts[i])) for i, p in enumerate(points)
+        ]
+        bits = [
+            i for i, p in enumerate(points) if p.kind in (PointKind.BIT, PointKind.BITS)
+        ]
+        bit_byte = np.array(
+            [starts[i] + points[i].bit_offset // 8 for i in bits], dtype=np.intp
+        )
+        bit_shift = np.array([points[i].bit_offset % 8 for i in bits], dtype=np.uint64)
+        bit_mask = np.array(
+            [(1 << max(points[i].bit_size, 1)) - 1 for i in bits], dtype=np.uint64
+        )
+        return cls(
+            items=items,
+            points=points,
+            point_items=np.array(point_items, dtype=np.intp),
+            dtype=structured_dtype(fields, position),
+            starts=starts,
+            ends=starts + sizes,
+            bit_index=np.array(bits, dtype=np.intp),
+            bit_byte=bit_byte,
+            bit_shift=bit_shift,
+            bit_mask=bit_mask,
+            answer_size=position,
+            converters=[_converter(p) for p in points],
+            bit_position={p: n for n, p in enumerate(bits)},
+        )
+
+    def invalidate(self) -> None:
+        """Report every point on the next answer (after errors, reconnects)."""
+        self.previous = None
+        self.previous_results = None
+        self.previous_bits = None
+
+    def decode(
+        self, answer: bytes
+    ) -> tuple[list[tuple[Point, object]], list[tuple[Point, int]]]:
+        """Changed values and per-point errors of one answer."""
+        if len(answer) != self.answer_size:
+            raise AdsCodecError(
+                f"sum read answer is {len(answer)} bytes, expected {self.answer_size}"
+            )
+        raw = np.frombuffer(answer, dtype=np.uint8)
+        view = np.frombuffer(answer, dtype=self.dtype)[0]
+        results: npt.NDArray[np.uint32] = view["results"]
+        point_results = results[self.point_items]
+        ok = point_results == 0
+        # A 16-bit window per bit field (padded so the last byte has a neighbour).
+        padded = np.concatenate((raw, np.zeros(1, dtype=np.uint8)))
+        low = padded[self.bit_byte].astype(np.uint64)
+        high = padded[self.bit_byte + 1].astype(np.uint64)
+        words = low | (high << np.uint64(8))
+        bit_values = (words >> self.bit_shift) & self.bit_mask
+        if self.previous is None or self.previous_results is None:
+            changed = ok.copy()
+        else:
+            changed_bytes = np.concatenate(([0], np.cumsum(raw != self.previous)))
+            changed = changed_bytes[self.ends] != changed_bytes[self.starts]
+            if self.previous_bits is not None and len(self.bit_index):
+                changed[self.bit_index] = bit_values != self.previous_bits
+            recovered = self.previous_results[self.point_items] != 0
+            changed = (changed | recovered) & ok
+        self.previous = raw.copy()
+        self.previous_results = results.copy()
+        self.previous_bits = bit_values
+        changes: list[tuple[Point, object]] = []
+        for i in np.flatnonzero(changed).tolist():
+            n = self.bit_position.get(i)
+            if n is not None:
+                value = int(bit_values[n])
+                changes.append(
+                    (
+                        self.points[i],
+                        bool(value) if self.points[i].bit_size <= 1 else value,
+                    )
+                )
+            else:
+                changes.append((self.points[i], self.converters[i](view[f"p{i}"])))
+        errors = [
+            (self.points[i], int(point_results[i]))
+            for i in np.flatnonzero(~ok).tolist()
+        ]
+        return changes, errors
+
+
+def _converter(point: Point) -> Any:
+    """numpy field value -> the Python value FastCS gets."""
+    if point.kind is PointKind.ARRAY:
+        return lambda value: np.array(value, copy=True)
+    parsed = parse_type(point.type_name)
+    if parsed.size != point.byte_size:
+        return lambda value: bytes(value)
+    if parsed.kind == "bool":
+        return lambda value: bool(value)
+    if parsed.kind in ("int", "bits"):
+        return lambda value: int(value)
+    if parsed.kind == "float":
+        return lambda value: float(value)
+    if parsed.kind == "string":
+        return lambda value: bytes(value).split(b"\0", 1)[0].decode("cp1252", "replace")
+    return lambda value: parsed.unpack(bytes(value))
+
+
+@dataclass(slots=True)
+class PollLayout:
+    """Every point of one master split into sum requests of <= 500 items."""
+
+    points: list[Point]
+    chunks: list[ChunkDecoder]
+
+    @classmethod
+    def build(
+        cls, points: Sequence[Point], chunk_size: int = MAX_SUM_SUB_COMMANDS
+    ) -> PollLayout:
+        items, where = plan_items(points)
+        chunks: list[ChunkDecoder] = []
+        for first in range(0, len(items), chunk_size):
+            chunk_items = items[first : first + chunk_size]
+            members = [
+                i for i, (n, _) in enumerate(where) if first <= n < first + chunk_size
+            ]
+            chunks.append(
+                ChunkDecoder.build(
+                    chunk_items,
+                    [points[i] for i in members],
+                    [where[i][0] - first for i in members],
+                    [where[i][1] for i in members],
+                )
+            )
+        return cls(list(points), chunks)
+
+    @property
+    def item_count(self) -> int:
+        return sum(len(chunk.items) for chunk in self.chunks)
+
+    def invalidate(self) -> None:
+        for chunk in self.chunks:
+            chunk.invalidate()

@@ -1,0 +1,222 @@
+"""Poll one master's points with sum reads and hand on only what changed.
+
+Per cycle: one 0xF080 sum read per <= 500 items (`ioc.decode` merges points
+that share bytes into one item), each answer decoded with one numpy view and
+compared with the previous answer; `on_changes` gets only changed values (all
+on the first cycle and after a failure), `on_errors` the points whose item
+failed, without stopping the others. Writes are single ADS writes (sum-write
+is refused on the device port); a bit inside a byte-addressed word is written
+read-modify-write, a bit of the bit-addressed image (0xF021 / 0xF031) as one
+byte, following the live symbol's group.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from fastcs_ethercat.ads.client import AdsClient, AdsError
+from fastcs_ethercat.ads.constants import MAX_SUM_SUB_COMMANDS, AdsReturnCode
+from fastcs_ethercat.ads.values import array_type_name, pack_value
+from fastcs_ethercat.ioc.decode import PollLayout
+from fastcs_ethercat.ioc.plan import Point, PointKind
+from fastcs_ethercat.ioc.resolve import BIT_GROUPS
+
+logger = logging.getLogger(__name__)
+
+OnChanges = Callable[[list[tuple[Point, object]], float], object]
+"""`on_changes(changes, timestamp)`: (point, value) pairs, time.time() of the read."""
+OnErrors = Callable[[list[tuple[Point, int]]], object]
+"""`on_errors(errors)`: (point, ADS return code) of points that failed."""
+
+
+@dataclass(slots=True)
+class PollStats:
+    """What a poller has done so far."""
+
+    cycles: int = 0
+    requests: int = 0
+    requests_per_cycle: int = 0
+    items_per_cycle: int = 0
+    points: int = 0
+    changes: int = 0
+    errors: int = 0
+    """Cycles whose read failed as a whole."""
+    item_errors: int = 0
+    """Point errors reported (per point per cycle)."""
+    overruns: int = 0
+    last_cycle_s: float = 0.0
+    max_cycle_s: float = 0.0
+    total_cycle_s: float = 0.0
+    last_error: str = ""
+
+    @property
+    def mean_cycle_s(self) -> float:
+        return self.total_cycle_s / self.cycles if self.cycles else 0.0
+
+
+class Poller:
+    """Polls `points` through `client` (the master's device port)."""
+
+    def __init__(
+        self,
+        client: AdsClient,
+        points: Sequence[Point],
+        on_changes: OnChanges,
+        on_errors: OnErrors | None = None,
+        *,
+        chunk_size: int = MAX_SUM_SUB_COMMANDS,
+    ) -> None:
+        self.client = client
+        self.on_changes = on_changes
+        self.on_errors = on_errors
+        self.chunk_size = chunk_size
+        self.layout = PollLayout.build(points, chunk_size)
+        self.stats = PollStats(
+            requests_per_cycle=len(self.layout.chunks),
+            items_per_cycle=self.layout.item_count,
+            points=len(points),
+        )
+        self._items = [item for chunk in self.layout.chunks for item in chunk.items]
+        self._stop = asyncio.Event()
+
+    @property
+    def points(self) -> list[Point]:
+        return self.layout.points
+
+    def invalidate(self) -> None:
+        """Report every value again on the next cycle."""
+        self.layout.invalidate()
+
+    async def poll_once(self) -> int:
+        """One cycle; returns the number of changed values handed on."""
+        started = time.perf_counter()
+        items = self._items
+        changed = 0
+        try:
+            answers = (
+                await self.client.sum_read(items, self.chunk_size) if items else []
+            )
+        except AdsError as error:
+            self._failed(error.code, str(error))
+        else:
+            stamp = time.time()
+            self.stats.requests += len(answers)
+            changes: list[tuple[Point, object]] = []
+            errors: list[tuple[Point, int]] = []
+            for chunk, answer in zip(self.layout.chunks, answers, strict=True):
+                try:
+                    chunk_changes, chunk_errors = chunk.decode(answer)
+                except ValueError as error:
+                    chunk.invalidate()
+                    chunk_errors = [
+                        (p, int(AdsReturnCode.DEVICE_INVALID_SIZE))
+                        for p in chunk.points
+                    ]
+                    chunk_changes = []
+                    self.stats.last_error = str(error)
+                changes += chunk_changes
+                errors += chunk_errors
+            if changes:
+                changed = len(changes)
+                self.stats.changes += changed
+                self._hand_on(self.on_changes, changes, stamp)
+            if errors:
+                self.stats.item_errors += len(errors)
+                self._report(errors)
+        elapsed = time.perf_counter() - started
+        stats = self.stats
+        stats.cycles += 1
+        stats.last_cycle_s = elapsed
+        stats.total_cycle_s += elapsed
+        stats.max_cycle_s = max(stats.max_cycle_s, elapsed)
+        return changed
+
+    def _failed(self, code: int, text: str) -> None:
+        """The whole read failed: every point is in error, all resent later."""
+        self.stats.errors += 1
+        self.stats.last_error = text
+        self.layout.invalidate()
+        self._report([(point, code) for point in self.layout.points])
+
+    def _report(self, errors: list[tuple[Point, int]]) -> None:
+        if self.on_errors is not None:
+            self._hand_on(self.on_errors, errors)
+
+    def _hand_on(self, callback: Callable[..., object], *args: Any) -> None:
+        """Call back; a failing consumer must not stop the polling."""
+        try:
+            callback(*args)
+        except Exception as error:
+            self.stats.last_error = f"{type(error).__name__} in callback: {error}"
+            logger.exception("poller callback failed")
+
+    async def run(self, rate_hz: float) -> None:
+        """Poll at `rate_hz` on a fixed time grid until `stop()`.
+
+        Ticks are start + k * period (no drift); a cycle that overruns skips
+        the ticks it missed and counts an overrun.
+        """
+        period = 1.0 / rate_hz
+        loop = asyncio.get_running_loop()
+        start = loop.time()
+        tick = 0
+        self._stop.clear()
+        while not self._stop.is_set():
+            await self.poll_once()
+            tick += 1
+            due = start + tick * period
+            now = loop.time()
+            if now > due:
+                missed = int((now - due) // period) + 1
+                self.stats.overruns += missed
+                tick += missed
+                due = start + tick * period
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(self._stop.wait(), due - loop.time())
+
+    def stop(self) -> None:
+        self._stop.set()
+
+    # -- writes ------------------------------------------------------------------
+
+    async def write_point(self, point: Point, value: Any) -> None:
+        """Write one point's value with single ADS writes (AdsError on failure)."""
+        await write_point(self.client, point, value)
+
+
+async def write_point(client: AdsClient, point: Point, value: Any) -> None:
+    """Pack `value` as the point's type and write it where the live symbol is."""
+    if point.index_group in BIT_GROUPS:
+        await client.write(
+            point.index_group, point.index_offset, pack_value("BOOL", value)
+        )
+        return
+    if point.kind in (PointKind.BIT, PointKind.BITS):
+        bits = max(point.bit_size, 1)
+        number = int(bool(value)) if bits == 1 else int(value)
+        if not 0 <= number < 1 << bits:
+            raise ValueError(f"{value!r} does not fit {bits} bits of {point.symbol}")
+        current = await client.read(
+            point.index_group, point.index_offset, point.byte_size
+        )
+        word = int.from_bytes(current, "little")
+        mask = ((1 << bits) - 1) << point.bit_offset
+        word = (word & ~mask) | (number << point.bit_offset)
+        await client.write(
+            point.index_group,
+            point.index_offset,
+            word.to_bytes(point.byte_size, "little"),
+        )
+        return
+    type_name = point.type_name
+    if point.kind is PointKind.ARRAY:
+        type_name = array_type_name(0, point.length - 1, point.type_name)
+    await client.write(
+        point.index_group, point.index_offset, pack_value(type_name, value)
+    )

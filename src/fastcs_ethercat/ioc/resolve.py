@@ -1,0 +1,475 @@
+"""Live symbol table + terminal YAML -> the points each terminal serves.
+
+The live table is the only truth about which PDOs exist (dynamic PDOs), their
+addresses, array lengths (oversampling) and member layouts (data-type table);
+the YAML adds names, selection and CoE objects. A terminal without YAML gets
+a generic plan: every live symbol, read-only.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections import defaultdict
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+
+from fastcs_ethercat.ads.client import SymbolTables
+from fastcs_ethercat.ads.constants import DataTypeFlag, IndexGroup
+from fastcs_ethercat.ads.datatypes import AdsDataTypeEntry
+from fastcs_ethercat.ads.errors import AdsCodecError
+from fastcs_ethercat.ads.symbols import AdsSymbolEntry
+from fastcs_ethercat.ads.values import parse_type
+from fastcs_ethercat.ioc.config import IocConfig
+from fastcs_ethercat.ioc.plan import (
+    CoePoint,
+    MasterPlan,
+    Point,
+    PointKind,
+    SlaveInfo,
+    TerminalPlan,
+)
+from fastcs_ethercat.terminals.model import CoeObject, TerminalType
+from fastcs_ethercat.terminals.registry import TerminalRegistry
+from fastcs_ethercat.terminals.symbols import ExpandedSymbol, expanded_symbols
+
+BIT_GROUPS = frozenset(
+    {IndexGroup.IO_IMAGE_RW_INPUT_BITS, IndexGroup.IO_IMAGE_RW_OUTPUT_BITS}
+)
+"""Bit-addressed image groups: offset in bits, one byte (0/1) per bit read."""
+RUNTIME_ATTRIBUTES = {
+    "WcState.WcState": "wc_state",
+    "WcState.InputToggle": "input_toggle",
+}
+"""TwinCAT's per-terminal runtime symbols (not in the ESI) and their names."""
+
+Types = Mapping[str, AdsDataTypeEntry]
+
+
+def snake_case(text: str) -> str:
+    """A stable attribute name: `Frm0WcState` -> `frm0_wc_state`."""
+    text = re.sub(r"([a-z0-9])([A-Z])", r"\1_\2", text)
+    text = re.sub(r"[^0-9A-Za-z]+", "_", text).strip("_").lower()
+    if not text or text[0].isdigit():
+        text = f"n{text}"
+    return text
+
+
+def group_symbols(symbols: Iterable[AdsSymbolEntry]) -> dict[str, list[AdsSymbolEntry]]:
+    """Symbols by the part of their name before the first dot (`Term 5 (EL3104)`)."""
+    groups: dict[str, list[AdsSymbolEntry]] = defaultdict(list)
+    for entry in symbols:
+        prefix, dot, _ = entry.name.partition(".")
+        if dot:
+            groups[prefix].append(entry)
+    return dict(groups)
+
+
+@dataclass(slots=True)
+class _Names:
+    """Attribute names of one terminal, made unique in a stable order."""
+
+    used: set[str] = field(default_factory=set)
+
+    def take(self, wanted: str) -> str:
+        name, number = wanted, 2
+        while name in self.used:
+            name, number = f"{wanted}_{number}", number + 1
+        self.used.add(name)
+        return name
+
+
+@dataclass(frozen=True, slots=True)
+class _Member:
+    """A leaf of a live symbol, addressed for a sum read."""
+
+    path: str  # "Status.Underrange"; "" for the symbol itself
+    type_name: str
+    kind: PointKind
+    byte_offset: int  # from the symbol start: the bytes to read
+    byte_size: int
+    bit_offset: int = 0
+    bit_size: int = 0
+    length: int = 1
+
+
+def symbol_members(entry: AdsSymbolEntry, types: Types) -> list[_Member]:
+    """The leaves of a live symbol from the data-type table (empty if unknown)."""
+    if entry.index_group in BIT_GROUPS:
+        return [_Member("", "BIT", PointKind.BIT, 0, 1, 0, 1)]
+    data_type = types.get(entry.type_name)
+    if data_type is None:
+        leaf = _leaf("", entry.type_name, 0, entry.size)
+        return [leaf] if leaf else []
+    found: list[_Member] = []
+    _walk(data_type, types, "", 0, found, 0)
+    return found
+
+
+def _walk(
+    data_type: AdsDataTypeEntry,
+    types: Types,
+    prefix: str,
+    base: int,
+    found: list[_Member],
+    depth: int,
+) -> None:
+    if depth > 8:
+        return
+    if not data_type.sub_items:
+        leaf = _type_leaf(prefix.rstrip("."), data_type, base)
+        if leaf:
+            found.append(leaf)
+        return
+    for item in data_type.sub_items:
+        path = f"{prefix}{item.name}"
+        if item.flags & DataTypeFlag.BIT_VALUES:
+            found.append(
+                _Member(
+                    path,
+                    item.type_name,
+                    PointKind.BIT if item.size == 1 else PointKind.BITS,
+                    base,
+                    max(data_type.size, 1),
+                    item.offset,
+                    item.size,
+                )
+            )
+            continue
+        nested = item if item.sub_items else types.get(item.type_name)
+        if nested is not None and (nested.sub_items or nested.array_dimensions):
+            _walk(nested, types, f"{path}.", base + item.offset, found, depth + 1)
+            continue
+        leaf = _leaf(path, item.type_name, base + item.offset, item.size)
+        if leaf:
+            found.append(leaf)
+
+
+def _type_leaf(path: str, data_type: AdsDataTypeEntry, base: int) -> _Member | None:
+    """A data type without members: an array (oversampling) or an alias."""
+    if data_type.array_dimensions:
+        length = math.prod(d.element_count for d in data_type.array_dimensions)
+        try:
+            element = parse_type(data_type.type_name)
+        except AdsCodecError:
+            return None
+        return _Member(
+            path,
+            element.name,
+            PointKind.ARRAY,
+            base,
+            element.size * length,
+            length=length,
+        )
+    return _leaf(path, data_type.type_name, base, data_type.size)
+
+
+def _leaf(path: str, type_name: str, offset: int, size: int) -> _Member | None:
+    try:
+        parsed = parse_type(type_name)
+    except AdsCodecError:
+        return None
+    if parsed.kind == "array" and parsed.element is not None:
+        return _Member(
+            path,
+            parsed.element.name,
+            PointKind.ARRAY,
+            offset,
+            parsed.size,
+            length=parsed.size // max(parsed.element.size, 1),
+        )
+    return _Member(path, parsed.name, PointKind.SCALAR, offset, size or parsed.size)
+
+
+def _point(
+    master: str,
+    entry: AdsSymbolEntry,
+    member: _Member,
+    attribute: str,
+    *,
+    writable: bool = False,
+    description: str = "",
+    units: str = "",
+) -> Point:
+    symbol = f"{entry.name}.{member.path}" if member.path else entry.name
+    return Point(
+        key=f"{master}/{symbol}",
+        symbol=symbol,
+        attribute=attribute,
+        type_name=member.type_name,
+        kind=member.kind,
+        index_group=entry.index_group,
+        index_offset=entry.index_offset + member.byte_offset,
+        byte_size=member.byte_size,
+        bit_offset=member.bit_offset,
+        bit_size=member.bit_size,
+        length=member.length,
+        writable=writable,
+        description=description,
+        units=units,
+    )
+
+
+def _fallback_members(symbol: ExpandedSymbol) -> list[_Member]:
+    """Members from the YAML's bit offsets when the live type is not listed."""
+    found: list[_Member] = []
+    for member in symbol.members:
+        path = ".".join(member.path)
+        if member.bit_size % 8 or member.bit_offset % 8:
+            start = member.bit_offset // 8
+            size = (member.bit_offset % 8 + member.bit_size + 7) // 8
+            kind = PointKind.BIT if member.bit_size == 1 else PointKind.BITS
+            found.append(
+                _Member(
+                    path,
+                    member.type_name,
+                    kind,
+                    start,
+                    size,
+                    member.bit_offset % 8,
+                    member.bit_size,
+                )
+            )
+        else:
+            leaf = _leaf(path, member.type_name, member.bit_offset // 8, 0)
+            if leaf:
+                found.append(leaf)
+    return found
+
+
+# -- per terminal -------------------------------------------------------------
+
+
+def detect_active_group(
+    terminal: TerminalType, symbols: Sequence[ExpandedSymbol], live: Iterable[str]
+) -> str | None:
+    """The PDO group whose symbols the live table holds (most of them)."""
+    names = set(live)
+    best: tuple[int, int, str] | None = None
+    wanted = terminal.active_group
+    for group in terminal.pdo_groups:
+        expected = {s.name for s in symbols if s.node_index in group.symbol_indices}
+        score = len(expected & names)
+        if not score:
+            continue
+        rank = (
+            score,
+            int(wanted is not None and group.name == wanted.name),
+            group.name,
+        )
+        if best is None or rank[:2] > best[:2]:
+            best = rank
+    return None if best is None else best[2]
+
+
+def chosen_symbols(
+    terminal: TerminalType, symbols: Sequence[ExpandedSymbol], active: str | None
+) -> list[ExpandedSymbol]:
+    """The symbols to serve: the selected ones of the active group (+ groupless).
+
+    When the YAML selects another group than the PLC runs, the active group's
+    symbols keep the YAML's flags, or are all served if none is selected.
+    """
+    grouped = {i for g in terminal.pdo_groups for i in g.symbol_indices}
+    free = [s for s in symbols if s.node_index not in grouped]
+    if active is None:
+        in_group: list[ExpandedSymbol] = []
+    else:
+        indices = set(terminal.group(active).symbol_indices)
+        in_group = [s for s in symbols if s.node_index in indices]
+    wanted = terminal.active_group
+    mismatch = wanted is not None and wanted.name != active
+    if mismatch and in_group and not any(s.selected for s in in_group):
+        return [s for s in free if s.selected] + in_group
+    return [s for s in free + in_group if s.selected]
+
+
+def resolve_terminal(
+    master: str,
+    slave: SlaveInfo,
+    entries: Sequence[AdsSymbolEntry],
+    types: Types,
+    registry: TerminalRegistry,
+) -> TerminalPlan:
+    """One slave's plan: matched YAML (or generic) and its points."""
+    match = registry.lookup(slave.product_code, slave.revision, slave.vendor_id)
+    if match is None:
+        plan = TerminalPlan(slave=slave, terminal_type=None)
+        plan.points = generic_points(master, entries, types)
+        if entries:
+            plan.warnings.append(
+                f"{slave.name}: no terminal YAML for product code "
+                f"0x{slave.product_code:08x} revision 0x{slave.revision:08x}; "
+                f"serving its {len(entries)} live symbols read-only"
+            )
+        return plan
+    terminal = match.terminal
+    plan = TerminalPlan(
+        slave=slave, terminal_type=match.type_name, exact_revision=match.exact
+    )
+    if not match.exact:
+        plan.warnings.append(
+            f"{slave.name}: revision 0x{slave.revision:08x} has no YAML; using "
+            f"{match.type_name} revision "
+            f"0x{terminal.identity.revision_number:08x}"
+        )
+    prefix = f"{slave.name}."
+    live = {e.name[len(prefix) :]: e for e in entries if e.name.startswith(prefix)}
+    symbols = expanded_symbols(terminal)
+    plan.active_group = detect_active_group(terminal, symbols, live)
+    wanted = terminal.active_group
+    if wanted is not None and plan.active_group not in (None, wanted.name):
+        plan.warnings.append(
+            f"{slave.name}: the PLC runs PDO group {plan.active_group!r}, the "
+            f"YAML selects {wanted.name!r}; serving {plan.active_group!r}"
+        )
+    names = _Names()
+    for symbol in chosen_symbols(terminal, symbols, plan.active_group):
+        entry = live.get(symbol.name)
+        if entry is None:
+            plan.warnings.append(f"{slave.name}: no live symbol {symbol.name!r}")
+            continue
+        plan.points.extend(_yaml_points(master, entry, symbol, types, names))
+    for rest, attribute in RUNTIME_ATTRIBUTES.items():
+        entry = live.get(rest)
+        if entry is not None:
+            for member in symbol_members(entry, types):
+                plan.points.append(_point(master, entry, member, names.take(attribute)))
+    plan.coe = coe_points(terminal)
+    return plan
+
+
+def _yaml_points(
+    master: str,
+    entry: AdsSymbolEntry,
+    symbol: ExpandedSymbol,
+    types: Types,
+    names: _Names,
+) -> list[Point]:
+    members = symbol_members(entry, types) or _fallback_members(symbol)
+    by_path = {".".join(m.path): m for m in symbol.members}
+    by_last = {m.path[-1]: m for m in symbol.members}
+    writable = symbol.direction == "output"
+    points: list[Point] = []
+    for member in members:
+        yaml_member = by_path.get(member.path) or by_last.get(
+            member.path.rpartition(".")[2]
+        )
+        if not member.path:
+            attribute = symbol.fastcs_name
+        elif yaml_member is not None and len(symbol.members) > 1:
+            attribute = f"{symbol.fastcs_name}_{yaml_member.fastcs_name}"
+        elif yaml_member is not None:
+            attribute = symbol.fastcs_name
+        else:
+            attribute = f"{symbol.fastcs_name}_{snake_case(member.path)}"
+        points.append(
+            _point(
+                master,
+                entry,
+                member,
+                names.take(attribute),
+                writable=writable,
+                description=(yaml_member.comment or "") if yaml_member else "",
+            )
+        )
+    return points
+
+
+def generic_points(
+    master: str, entries: Sequence[AdsSymbolEntry], types: Types
+) -> list[Point]:
+    """Every live symbol of an unknown terminal, read-only, in name order."""
+    names = _Names()
+    points: list[Point] = []
+    for entry in sorted(entries, key=lambda e: e.name):
+        rest = entry.name.partition(".")[2]
+        base = RUNTIME_ATTRIBUTES.get(rest) or snake_case(rest)
+        for member in symbol_members(entry, types):
+            attribute = f"{base}_{snake_case(member.path)}" if member.path else base
+            points.append(_point(master, entry, member, names.take(attribute)))
+    return points
+
+
+def coe_points(terminal: TerminalType) -> list[CoePoint]:
+    """The YAML's selected CoE objects, one point per sub-item."""
+    points: list[CoePoint] = []
+    for obj in terminal.coe_objects:
+        if obj.selected:
+            points.extend(coe_object_points(obj))
+    return points
+
+
+def coe_object_points(obj: CoeObject) -> list[CoePoint]:
+    """A CoE object's sub-items (or the object itself when it has none)."""
+    if not obj.sub_items:
+        return [
+            CoePoint(
+                attribute=obj.fastcs_name,
+                index=obj.index,
+                subindex=0,
+                type_name=obj.type_name,
+                bit_size=obj.bit_size,
+                writable=obj.access in ("rw", "wo"),
+                description=obj.name,
+                default=obj.default_value or obj.default_data or "",
+                enum_texts=tuple((e.value, e.text) for e in obj.enum),
+            )
+        ]
+    return [
+        CoePoint(
+            attribute=f"{obj.fastcs_name}_{sub.fastcs_name}",
+            index=obj.index,
+            subindex=sub.subindex,
+            type_name=sub.type_name,
+            bit_size=sub.bit_size,
+            writable=(sub.access or obj.access) in ("rw", "wo"),
+            description=f"{obj.name}: {sub.name}",
+            default=sub.default_value or sub.default_data or "",
+            enum_texts=tuple((e.value, e.text) for e in sub.enum),
+        )
+        for sub in obj.sub_items
+    ]
+
+
+# -- per master ---------------------------------------------------------------
+
+
+def master_points(
+    master: str, entries: Sequence[AdsSymbolEntry], types: Types
+) -> list[Point]:
+    """The master's own `Inputs` / `Outputs` members, read-only."""
+    names = _Names()
+    points: list[Point] = []
+    for entry in sorted(entries, key=lambda e: e.name):
+        rest = entry.name.partition(".")[2]
+        for member in symbol_members(entry, types):
+            attribute = snake_case(member.path or rest)
+            points.append(_point(master, entry, member, names.take(attribute)))
+    return points
+
+
+def resolve_master(
+    master: MasterPlan,
+    slaves: Sequence[SlaveInfo],
+    tables: SymbolTables,
+    registry: TerminalRegistry,
+    config: IocConfig,
+) -> list[str]:
+    """Fill `master` with a plan per slave; return the warnings."""
+    types = {t.name: t for t in tables.data_types}
+    groups = group_symbols(tables.symbols)
+    master.master_points = master_points(
+        master.name, groups.get(master.name, []), types
+    )
+    warnings: list[str] = []
+    for slave in slaves:
+        plan = resolve_terminal(
+            master.name, slave, groups.get(slave.name, []), types, registry
+        )
+        override = config.terminals.get(slave.name)
+        if override is not None:
+            plan.poll_rate_hz = override.poll_rate_hz
+        warnings.extend(plan.warnings)
+        master.terminals.append(plan)
+    return warnings
