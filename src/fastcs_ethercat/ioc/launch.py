@@ -20,7 +20,7 @@ transports serve, so a parent process knows when to look for PVs.
 from __future__ import annotations
 
 import asyncio
-from collections.abc import Callable, Mapping
+from collections.abc import Awaitable, Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Final
@@ -109,15 +109,24 @@ def run(
     options: LaunchOptions,
     *,
     on_ready: Callable[[], object] | None = None,
+    loop: asyncio.AbstractEventLoop | None = None,
+    on_stop: Callable[[], Awaitable[object]] | None = None,
 ) -> None:
-    """Serve until SIGINT or SIGTERM, as this process's one IOC."""
-    loop = asyncio.new_event_loop()
+    """Serve until SIGINT or SIGTERM, as this process's one IOC.
+
+    Pass the `loop` that discovery ran on, so the ADS clients and the tree
+    share one loop; it is closed when serving ends, after `on_stop` ran.
+    """
+    if loop is None:
+        loop = asyncio.new_event_loop()
     asyncio.set_event_loop(loop)
     try:
         build_fastcs(root, prefix, options, loop, on_ready=on_ready).run(
             interactive=False
         )
     finally:
+        if on_stop is not None:
+            loop.run_until_complete(on_stop())
         loop.close()
 
 

@@ -1,0 +1,163 @@
+"""Plan points -> FastCS attributes, and the IO that writes them back.
+
+A `Point` (a TwinCAT symbol or one member of it) becomes an `AttrR` (inputs)
+or an `AttrRW` (outputs, RxPDO symbols); its values arrive from the poller,
+which pushes only changed values, so a point attribute has no periodic update
+of its own. Writes go through `PointIO` to a writer the app supplies (the
+poller's `write_point`). A `CoePoint` becomes an attribute read once at start
+(and again on demand) and written through `CoeIO` as an SDO.
+
+A point whose type cannot be served never disappears silently: it is returned
+with its reason by `attribute_for_point`'s callers and reported.
+"""
+
+from __future__ import annotations
+
+import enum
+from collections.abc import Awaitable, Callable
+from dataclasses import KW_ONLY, dataclass
+from typing import Any
+
+import numpy as np
+from fastcs.attributes import Attribute, AttributeIO, AttributeIORef, AttrR, AttrRW
+from fastcs.attributes.attr_w import AttrW
+from fastcs.datatypes import Bool, DataType, Enum, Int
+from fastcs.util import ONCE
+
+from fastcs_ethercat.ioc.datatypes import description, enum_class, to_fastcs
+from fastcs_ethercat.ioc.plan import CoePoint, Point, PointKind
+
+PointWriter = Callable[[Point, Any], Awaitable[None]]
+"""Writes one value of an output point to the target (the poller's write_point)."""
+CoeReader = Callable[[CoePoint], Awaitable[Any]]
+CoeWriter = Callable[[CoePoint, Any], Awaitable[None]]
+
+
+def point_datatype(point: Point) -> DataType:
+    """The FastCS datatype of a point: width, signedness, enum, waveform.
+
+    Raises `UnsupportedTypeError` (a `ValueError`) for a type with no PV form.
+    """
+    members = dict(point.enum_texts) if point.enum_texts else None
+    if point.kind is PointKind.BIT:
+        return Bool()
+    if point.kind is PointKind.BITS:
+        if members is not None:
+            return Enum(enum_class(point.attribute, members))
+        return Int(min=0, max=(1 << max(point.bit_size, 1)) - 1)
+    if point.kind is PointKind.ARRAY:
+        return to_fastcs(f"ARRAY [0..{max(point.length, 1) - 1}] OF {point.type_name}")
+    return to_fastcs(
+        point.type_name,
+        units=point.units or None,
+        enum_members=members,
+        enum_name=point.attribute,
+    )
+
+
+def coe_datatype(coe: CoePoint) -> DataType:
+    """The FastCS datatype of a CoE sub-item (its ESI type, enum texts)."""
+    if coe.enum_texts:  # ESI enum types (DT0800EN03) name no base type
+        return Enum(enum_class(coe.attribute, dict(coe.enum_texts)))
+    try:
+        return to_fastcs(coe.type_name)
+    except ValueError:
+        if coe.bit_size == 1:
+            return Bool()
+        if 0 < coe.bit_size <= 16:
+            return Int(min=0, max=(1 << coe.bit_size) - 1)
+        raise
+
+
+def to_device(value: Any) -> Any:
+    """A FastCS value as the data plane writes it: enums as their number."""
+    if isinstance(value, enum.Enum):
+        return int(value.value)
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    return value
+
+
+@dataclass
+class PointRef(AttributeIORef):
+    """The point an attribute serves; updated by the poller, never scanned."""
+
+    point: Point
+    _: KW_ONLY
+    update_period: float | None = None
+
+
+class PointIO(AttributeIO[Any, PointRef]):
+    """Writes of output points: hand the value to the data plane's writer."""
+
+    def __init__(self, writer: PointWriter) -> None:
+        super().__init__()
+        self.writer = writer
+
+    async def send(self, attr: AttrW[Any, PointRef], value: Any) -> None:
+        await self.writer(attr.io_ref.point, to_device(value))
+
+
+@dataclass
+class CoeRef(AttributeIORef):
+    """The CoE object sub-item an attribute serves: read once at start."""
+
+    coe: CoePoint
+    _: KW_ONLY
+    update_period: float | None = ONCE
+
+
+class CoeIO(AttributeIO[Any, CoeRef]):
+    """SDO access of one terminal's CoE attributes.
+
+    A failed read leaves the value as it was and is logged by FastCS; it never
+    raises out of `update`, so one unreachable object does not pause the tree.
+    """
+
+    def __init__(self, reader: CoeReader, writer: CoeWriter) -> None:
+        super().__init__()
+        self.reader = reader
+        self.writer = writer
+        self.failures: dict[str, str] = {}
+
+    async def update(self, attr: AttrR[Any, CoeRef]) -> None:
+        coe = attr.io_ref.coe
+        try:
+            await attr.update(await self.reader(coe))
+            self.failures.pop(coe.attribute, None)
+        except Exception as error:  # one object must not stop the tree
+            self.failures[coe.attribute] = f"{type(error).__name__}: {error}"
+
+    async def send(self, attr: AttrW[Any, CoeRef], value: Any) -> None:
+        """Write the SDO, then read it back so the readback shows the slave's."""
+        await self.writer(attr.io_ref.coe, to_device(value))
+        if isinstance(attr, AttrR):
+            await self.update(attr)
+
+
+def attribute_for_point(point: Point, *, read_only: bool = False) -> Attribute:
+    """An `AttrRW` for a writable point (unless read-only), else an `AttrR`."""
+    datatype = point_datatype(point)
+    text = description(point.description or point.symbol)
+    if point.writable and not read_only:
+        return AttrRW(datatype, io_ref=PointRef(point), description=text)
+    return AttrR(datatype, io_ref=PointRef(point), description=text)
+
+
+def attribute_for_coe(coe: CoePoint, *, read_only: bool = False) -> Attribute:
+    """An attribute for a CoE sub-item, read at start and written as an SDO."""
+    datatype = coe_datatype(coe)
+    text = description(
+        coe.description or f"CoE {coe.index:04X}:{coe.subindex:02X} {coe.attribute}"
+    )
+    if coe.writable and not read_only:
+        return AttrRW(datatype, io_ref=CoeRef(coe), description=text)
+    return AttrR(datatype, io_ref=CoeRef(coe), description=text)
+
+
+def from_device(attr: AttrR[Any, Any], value: Any) -> Any:
+    """A data-plane value in the form the attribute's datatype validates."""
+    datatype = attr.datatype
+    if isinstance(datatype, Enum) and not isinstance(value, enum.Enum):
+        return datatype.enum_cls(int(value))
+    return value

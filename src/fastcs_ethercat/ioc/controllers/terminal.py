@@ -1,0 +1,171 @@
+"""One controller per EtherCAT slave: its selected symbols, diagnostics, CoE.
+
+Symbols arrive as changed values from the master's poller (`apply_change`);
+diagnostics (AL state, link state, CRC errors) from the master controller's
+slow scan (`set_diagnostics`); CoE objects are read once at start and again
+when `CoeRefresh` is pressed, never polled. Nothing here raises out of a scan
+or a push: a bad value marks only its own point as failed.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any, Final
+
+from fastcs.attributes import Attribute, AttrR
+from fastcs.controllers import Controller
+from fastcs.datatypes import Bool, Int, String
+from fastcs.methods import Command
+
+from fastcs_ethercat.ads.ethercat import AlState, AlStateFlag, SlaveState
+from fastcs_ethercat.ioc.attributes import (
+    CoeIO,
+    CoeRef,
+    PointIO,
+    attribute_for_coe,
+    attribute_for_point,
+    from_device,
+)
+from fastcs_ethercat.ioc.controllers.post import post
+from fastcs_ethercat.ioc.plan import Point, TerminalPlan
+
+DIAGNOSTIC_LEAVES: Final = ("AlState", "LinkOk", "LinkState", "CrcErrors", "Type")
+"""Attributes every terminal controller has besides its symbols (PV leaves)."""
+COE_REFRESH_LEAF: Final = "CoeRefresh"
+COE_LEAF_PREFIX: Final = "Coe "
+"""A CoE attribute's leaf is `Coe <attribute>` -> `CoeFilterSettings`."""
+UNKNOWN_TYPE: Final = "unknown"
+
+
+def coe_leaf(attribute: str) -> str:
+    return COE_LEAF_PREFIX + attribute
+
+
+def al_state_text(state: SlaveState) -> str:
+    """`OP`, `SAFEOP+ERR`, ...: the AL state and its error flags, for humans."""
+    al = state.al_state
+    text = al.name if isinstance(al, AlState) else f"0x{int(al):X}"
+    flags = state.flags
+    if flags & AlStateFlag.ERROR:
+        text += "+ERR"
+    if flags & AlStateFlag.INVALID_VPRS:
+        text += "+VPRS"
+    if flags & AlStateFlag.INIT_COMMAND_ERROR:
+        text += "+INITCMD"
+    if flags & AlStateFlag.DISABLED:
+        text += "+DISABLED"
+    return text
+
+
+class TerminalController(Controller):
+    """A terminal whose type has a YAML: the symbols and CoE objects it selects.
+
+    `leaves` maps a point's symbol (or a diagnostic / CoE leaf) to its PV
+    segment, as planned by `naming`.
+    """
+
+    def __init__(
+        self,
+        plan: TerminalPlan,
+        leaves: Mapping[str, str],
+        point_io: PointIO,
+        coe_io: CoeIO | None = None,
+        *,
+        read_only: bool = False,
+    ) -> None:
+        ios: list[Any] = [point_io] if coe_io is None else [point_io, coe_io]
+        super().__init__(description=_describe(plan), ios=ios)
+        self.plan = plan
+        self.coe_io = coe_io
+        self.by_key: dict[str, AttrR[Any, Any]] = {}
+        self.coe_attributes: list[AttrR[Any, Any]] = []
+        self.unserved: list[tuple[str, str]] = []
+        """(source, reason) of every point this terminal could not serve."""
+        self.failed_points: dict[str, str] = {}
+        for point in plan.points:
+            self._add_point(point, leaves, read_only)
+        for coe in plan.coe if coe_io is not None else ():
+            self._add_coe(coe, leaves, read_only)
+        self.diag: dict[str, AttrR[Any, Any]] = {
+            "AlState": AttrR(String(), description="AL state"),
+            "LinkOk": AttrR(Bool(), description="Link fine"),
+            "LinkState": AttrR(Int(min=0, max=255), description="Link bits"),
+            "CrcErrors": AttrR(Int(), description="CRC errors, all ports"),
+            "Type": AttrR(
+                String(),
+                initial_value=plan.terminal_type or UNKNOWN_TYPE,
+                description="Terminal type (YAML)",
+            ),
+        }
+        for leaf, attr in self.diag.items():
+            self.add_attribute(leaves[leaf], attr)
+        if self.coe_attributes:
+            self.add_command(leaves[COE_REFRESH_LEAF], Command(self.refresh_coe))
+
+    def _add_point(
+        self, point: Point, leaves: Mapping[str, str], read_only: bool
+    ) -> None:
+        try:
+            attr = attribute_for_point(point, read_only=read_only)
+        except ValueError as error:
+            self.unserved.append((point.symbol, str(error)))
+            return
+        self.add_attribute(leaves[point.symbol], attr)
+        assert isinstance(attr, AttrR)
+        self.by_key[point.key] = attr
+
+    def _add_coe(self, coe: Any, leaves: Mapping[str, str], read_only: bool) -> None:
+        source = f"CoE {coe.index:04X}:{coe.subindex:02X} {coe.attribute}"
+        try:
+            attr: Attribute = attribute_for_coe(coe, read_only=read_only)
+        except ValueError as error:
+            self.unserved.append((source, str(error)))
+            return
+        self.add_attribute(leaves[coe_leaf(coe.attribute)], attr)
+        assert isinstance(attr, AttrR)
+        self.coe_attributes.append(attr)
+
+    async def apply_change(self, point: Point, value: Any) -> None:
+        """Post one changed value of one of this terminal's points."""
+        attr = self.by_key.get(point.key)
+        if attr is None:
+            return
+        try:
+            await attr.update(from_device(attr, value))
+            self.failed_points.pop(point.key, None)
+        except Exception as error:  # one value must not stop the scan
+            self.failed_points[point.key] = f"{type(error).__name__}: {error}"
+
+    async def set_diagnostics(self, state: SlaveState | None, crc: int | None) -> None:
+        """Post the master's view of this slave (None: not reported this time)."""
+        if state is not None:
+            await post(self.diag["AlState"], al_state_text(state))
+            await post(self.diag["LinkState"], state.link)
+            await post(self.diag["LinkOk"], state.link == 0)
+        if crc is not None:
+            await post(self.diag["CrcErrors"], min(crc, 2**31 - 1))
+
+    async def refresh_coe(self) -> None:
+        """Read every CoE attribute again (SDO uploads), on demand."""
+        if self.coe_io is None:
+            return
+        for attr in self.coe_attributes:
+            ref = attr.io_ref
+            if isinstance(ref, CoeRef):
+                await self.coe_io.update(attr)
+
+
+class GenericTerminalController(TerminalController):
+    """A terminal with no YAML of its type: whatever symbols discovery found.
+
+    Same attributes and diagnostics as a known terminal; its `Type` reads
+    `unknown` and its description names the identity the master reported.
+    """
+
+
+def _describe(plan: TerminalPlan) -> str:
+    slave = plan.slave
+    kind = plan.terminal_type or (
+        f"unknown 0x{slave.vendor_id:X}/0x{slave.product_code:X}/0x{slave.revision:X}"
+    )
+    return f"{slave.name}: {kind}"

@@ -1,0 +1,244 @@
+"""Shared helpers for tests that run an IOC in a subprocess.
+
+An IOC under test always lives in its own process (softioc starts once per
+process) with CA and PVA on free loopback ports of its own, so it cannot meet
+another test's IOC. Real clients talk to it: the `caget`/`caput`/`pvget`
+binaries of the venv (their wrappers always exit 0, so their output is what
+counts), aioca (in a subprocess: its CA context is one per process) and p4p.
+Everything started is killed by PID at the end, including any caRepeater the
+IOC or the clients spawned (found by a token in their environment).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import queue
+import re
+import secrets
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from p4p.client.thread import Context
+
+from tests.conftest import loopback_env
+
+BIN = Path(sys.executable).parent
+START_TIMEOUT = 90.0
+TOKEN_VARIABLE = "FASTCS_ETHERCAT_TEST_TOKEN"
+
+
+def free_port(tcp: bool, udp: bool) -> int:
+    """A loopback port free for TCP and/or UDP right now."""
+    for _ in range(200):
+        with socket.socket() as probe:
+            probe.bind(("127.0.0.1", 0))
+            port = probe.getsockname()[1]
+        sockets = []
+        try:
+            if tcp:
+                sockets.append(socket.socket(socket.AF_INET, socket.SOCK_STREAM))
+                sockets[-1].bind(("127.0.0.1", port))
+            if udp:
+                sockets.append(socket.socket(socket.AF_INET, socket.SOCK_DGRAM))
+                sockets[-1].bind(("127.0.0.1", port))
+            return port
+        except OSError:
+            continue
+        finally:
+            for sock in sockets:
+                sock.close()
+    raise RuntimeError("no free port")
+
+
+def ioc_env(token: str) -> dict[str, str]:
+    """Loopback EPICS settings on free ports, tagged with `token`."""
+    return loopback_env(
+        EPICS_CA_SERVER_PORT=str(free_port(tcp=True, udp=True)),
+        EPICS_CA_REPEATER_PORT=str(free_port(tcp=False, udp=True)),
+        EPICS_PVA_SERVER_PORT=str(free_port(tcp=True, udp=False)),
+        EPICS_PVA_BROADCAST_PORT=str(free_port(tcp=False, udp=True)),
+        PYTHONUNBUFFERED="1",
+        **{TOKEN_VARIABLE: token},
+    )
+
+
+def new_token() -> str:
+    return secrets.token_hex(8)
+
+
+@dataclass
+class IocProcess:
+    """An IOC subprocess, its environment and its output so far."""
+
+    process: subprocess.Popen[str]
+    prefix: str
+    env: dict[str, str]
+    token: str
+    lines: queue.Queue[str]
+    output: list[str] = field(default_factory=list)
+    figures: dict[str, float] = field(default_factory=dict)
+    reader: threading.Thread | None = None
+
+    def pv(self, name: str) -> str:
+        return f"{self.prefix}:{name}"
+
+    def wait_for_line(self, pattern: str, timeout: float) -> str:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            try:
+                line = self.lines.get(timeout=0.1)
+            except queue.Empty:
+                if self.process.poll() is not None:
+                    break
+                continue
+            self.output.append(line)
+            if re.search(pattern, line):
+                return line
+        tail = "".join(self.output[-40:])
+        raise AssertionError(f"no line matching {pattern!r}; output:\n{tail}")
+
+    def tool(self, *args: str, timeout: float = 30) -> str:
+        """Run a CA/PVA command-line tool against this IOC; return its output."""
+        done = subprocess.run(
+            [str(BIN / args[0]), *args[1:]],
+            env=self.env,
+            capture_output=True,
+            text=True,
+            timeout=timeout,
+        )
+        return done.stdout + done.stderr
+
+    def p4p_context(self) -> Context:
+        return Context(
+            "pva",
+            conf={
+                "EPICS_PVA_ADDR_LIST": "127.0.0.1",
+                "EPICS_PVA_AUTO_ADDR_LIST": "NO",
+                "EPICS_PVA_BROADCAST_PORT": self.env["EPICS_PVA_BROADCAST_PORT"],
+                "EPICS_PVA_SERVER_PORT": self.env["EPICS_PVA_SERVER_PORT"],
+            },
+            useenv=False,
+        )
+
+    def stop(self) -> None:
+        """Stop the IOC and everything carrying its token, by PID."""
+        stop_pid(self.process.pid)
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            self.process.wait(10)
+        for pid in processes_with_token(self.token):
+            stop_pid(pid)
+        if self.reader is not None:
+            self.reader.join(5)
+
+
+def start_ioc(
+    command: Sequence[str], prefix: str, env: dict[str, str], token: str
+) -> IocProcess:
+    """Start `command` with stdout+stderr read into a queue by a thread."""
+    process = subprocess.Popen(
+        list(command),
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
+    lines: queue.Queue[str] = queue.Queue()
+    assert process.stdout is not None
+    stdout = process.stdout
+    reader = threading.Thread(
+        target=lambda: [lines.put(x) for x in stdout], daemon=True
+    )
+    reader.start()
+    return IocProcess(process, prefix, env, token, lines, reader=reader)
+
+
+def processes_with_token(token: str) -> list[int]:
+    """PIDs whose environment carries our token (the IOC's caRepeater too)."""
+    found = []
+    marker = f"{TOKEN_VARIABLE}={token}".encode()
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit() or int(entry.name) == os.getpid():
+            continue
+        try:
+            if marker in (entry / "environ").read_bytes().split(b"\0"):
+                found.append(int(entry.name))
+        except OSError:
+            continue
+    return found
+
+
+def stop_pid(pid: int) -> None:
+    """SIGTERM, then SIGKILL after 5 s, one PID."""
+    try:
+        os.kill(pid, signal.SIGTERM)
+    except ProcessLookupError:
+        return
+    for _ in range(50):
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            return
+        time.sleep(0.1)
+    with contextlib.suppress(ProcessLookupError):
+        os.kill(pid, signal.SIGKILL)
+
+
+def caget(ioc: IocProcess, *flags_and_names: str) -> dict[str, str]:
+    """caget's `NAME VALUE...` lines as a dict (value: the rest of the line)."""
+    output = ioc.tool("caget", *flags_and_names)
+    values = {}
+    for line in output.splitlines():
+        name, _, value = line.partition(" ")
+        if name.startswith(ioc.prefix):
+            values[name] = value.strip()
+    return values
+
+
+def aioca_get(ioc: IocProcess, names: Sequence[str]) -> dict[str, str]:
+    """Values read with aioca in a subprocess, as `repr` text by name."""
+    script = (
+        "import asyncio, aioca, sys\n"
+        "async def main(names):\n"
+        "    values = await aioca.caget(names, format=aioca.FORMAT_CTRL,"
+        " timeout=10)\n"
+        "    for name, value in zip(names, values):\n"
+        "        print(name, repr(value.real if hasattr(value, 'real')"
+        " else value))\n"
+        "asyncio.run(main(sys.argv[1:]))\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", script, *names],
+        env=ioc.env,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    return dict(
+        line.split(" ", 1)
+        for line in done.stdout.splitlines()
+        if line.startswith(ioc.prefix)
+    )
+
+
+def wait_for(check: Callable[[], Any], timeout: float = 10.0) -> Any:
+    """Call `check` until it returns something true or `timeout` passes."""
+    deadline = time.monotonic() + timeout
+    while True:
+        result = check()
+        if result or time.monotonic() > deadline:
+            return result
+        time.sleep(0.1)
+
+
+def parse_fields(text: str) -> dict[str, Any]:
+    """`key=value` words of a line."""
+    return dict(item.split("=", 1) for item in text.split() if "=" in item)

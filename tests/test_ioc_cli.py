@@ -1,0 +1,77 @@
+"""`fastcs-ethercat ioc` and `demo` as a user runs them (subprocesses).
+
+`demo` starts the simulator and the IOC itself; the test runs the `caget`
+line it prints. Everything is stopped by PID, including the simulator the
+demo started (it carries the test's token in its environment).
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+from tests.conftest import REPO_ROOT
+from tests.ioc_support import caget, ioc_env, new_token, start_ioc
+
+IOC = (sys.executable, "-m", "fastcs_ethercat")
+
+
+def _run(*args: str, cwd: Path = REPO_ROOT) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [*IOC, *args],
+        cwd=cwd,
+        env=ioc_env(new_token()),
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+
+
+def test_a_missing_config_is_one_error_line(tmp_path: Path) -> None:
+    done = _run("ioc", "--config", str(tmp_path / "none.yaml"), "--list-pvs")
+
+    assert done.returncode == 2
+    assert done.stderr.strip().splitlines() == [
+        f"error: {tmp_path / 'none.yaml'}: cannot read: No such file or directory"
+    ]
+
+
+def test_a_bad_flag_value_names_the_flag() -> None:
+    done = _run("ioc", "--config", "ioc/demo.yaml", "--poll-rate", "0", "--list-pvs")
+
+    assert done.returncode == 2
+    assert "poll_rate_hz (command line)" in done.stderr.splitlines()[-1]
+
+
+def test_a_target_that_does_not_answer_is_a_user_error() -> None:
+    done = _run("ioc", "--config", "ioc/demo.yaml", "--target", "127.0.0.1:1",
+                "--list-pvs")  # fmt: skip
+
+    assert done.returncode == 2
+    assert (
+        done.stderr.strip()
+        .splitlines()[-1]
+        .startswith("error: target: cannot discover the target:")
+    )
+
+
+def test_demo_serves_and_its_caget_line_works() -> None:
+    token = new_token()
+    prefix = f"DM{token[:6].upper()}"
+    demo = start_ioc([*IOC, "demo", "--prefix", prefix], prefix, ioc_env(token), token)
+    try:
+        listed = demo.wait_for_line(r"^demo: \d+ PVs listed in ", 90)
+        line = demo.wait_for_line(r"^demo: try ", 30)
+        command = line.split("try", 1)[1].split()
+        pv = command[-1]
+        values = caget(demo, pv)
+        listing = Path(listed.rsplit(" in ", 1)[1].strip())
+        names = [row.split(" ", 1)[0] for row in listing.read_text().splitlines()]
+    finally:
+        demo.stop()
+
+    assert command[0] == "caget"
+    assert pv == f"{prefix}:ETH1:RIO1:MOD5:AICompactCh1"
+    assert -32768 <= int(values[pv]) <= 32767
+    assert pv in names and len(names) > 400
