@@ -26,6 +26,7 @@ from fastcs_ethercat.ioc.attributes import CoeIO
 from fastcs_ethercat.ioc.config import load_ioc_config
 from fastcs_ethercat.ioc.controllers.master import MasterStatus
 from fastcs_ethercat.ioc.controllers.terminal import (
+    AlStateView,
     GenericTerminalController,
     TerminalController,
     al_state_text,
@@ -279,7 +280,8 @@ async def test_master_status_reaches_every_terminal() -> None:
 
     assert master.attrs["SlaveCount"].get() == 3
     assert master.attrs["LostFrames"].get() == 3
-    assert analog.diag["AlState"].get() == "SAFEOP+ERR"
+    assert analog.diag["AlState"].get() is AlStateView.SAFEOP_ERR
+    assert analog.diag["AlStateText"].get() == "SAFEOP+ERR"
     assert analog.diag["LinkOk"].get() is False
     assert analog.diag["CrcErrors"].get() == 7
     assert al_state_text(states[0]) == "OP"

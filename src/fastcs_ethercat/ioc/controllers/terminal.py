@@ -9,12 +9,13 @@ or a push: a bad value marks only its own point as failed.
 
 from __future__ import annotations
 
+import enum
 from collections.abc import Mapping
 from typing import Any, Final
 
 from fastcs.attributes import Attribute, AttrR
 from fastcs.controllers import Controller
-from fastcs.datatypes import Bool, Int, String
+from fastcs.datatypes import Bool, Enum, Int, String
 from fastcs.methods import Command
 
 from fastcs_ethercat.ads.ethercat import AlState, AlStateFlag, SlaveState
@@ -29,7 +30,14 @@ from fastcs_ethercat.ioc.attributes import (
 from fastcs_ethercat.ioc.controllers.post import post
 from fastcs_ethercat.ioc.plan import Point, TerminalPlan
 
-DIAGNOSTIC_LEAVES: Final = ("AlState", "LinkOk", "LinkState", "CrcErrors", "Type")
+DIAGNOSTIC_LEAVES: Final = (
+    "AlState",
+    "AlStateText",
+    "LinkOk",
+    "LinkState",
+    "CrcErrors",
+    "Type",
+)
 """Attributes every terminal controller has besides its symbols (PV leaves)."""
 COE_REFRESH_LEAF: Final = "CoeRefresh"
 COE_LEAF_PREFIX: Final = "Coe "
@@ -39,6 +47,32 @@ UNKNOWN_TYPE: Final = "unknown"
 
 def coe_leaf(attribute: str) -> str:
     return COE_LEAF_PREFIX + attribute
+
+
+class AlStateView(enum.Enum):
+    """The AL state as an mbbi an operator can read with plain `caget`:
+    the state, with `_ERR` when the slave flags an error."""
+
+    UNKNOWN = "UNKNOWN"
+    INIT = "INIT"
+    PREOP = "PREOP"
+    BOOT = "BOOT"
+    SAFEOP = "SAFEOP"
+    OP = "OP"
+    INIT_ERR = "INIT_ERR"
+    PREOP_ERR = "PREOP_ERR"
+    BOOT_ERR = "BOOT_ERR"
+    SAFEOP_ERR = "SAFEOP_ERR"
+    OP_ERR = "OP_ERR"
+
+
+def al_state_view(state: SlaveState) -> AlStateView:
+    """The enum value of `AlState` for what the master reports."""
+    al = state.al_state
+    if not isinstance(al, AlState) or al.name not in AlStateView.__members__:
+        return AlStateView.UNKNOWN
+    suffix = "_ERR" if state.flags & AlStateFlag.ERROR else ""
+    return AlStateView[al.name + suffix]
 
 
 def al_state_text(state: SlaveState) -> str:
@@ -87,7 +121,8 @@ class TerminalController(Controller):
         for coe in plan.coe if coe_io is not None else ():
             self._add_coe(coe, leaves, read_only)
         self.diag: dict[str, AttrR[Any, Any]] = {
-            "AlState": AttrR(String(), description="AL state"),
+            "AlState": AttrR(Enum(AlStateView), description="AL state"),
+            "AlStateText": AttrR(String(), description="AL state and flags"),
             "LinkOk": AttrR(Bool(), description="Link fine"),
             "LinkState": AttrR(Int(min=0, max=255), description="Link bits"),
             "CrcErrors": AttrR(Int(), description="CRC errors, all ports"),
@@ -139,7 +174,8 @@ class TerminalController(Controller):
     async def set_diagnostics(self, state: SlaveState | None, crc: int | None) -> None:
         """Post the master's view of this slave (None: not reported this time)."""
         if state is not None:
-            await post(self.diag["AlState"], al_state_text(state))
+            await post(self.diag["AlState"], al_state_view(state))
+            await post(self.diag["AlStateText"], al_state_text(state))
             await post(self.diag["LinkState"], state.link)
             await post(self.diag["LinkOk"], state.link == 0)
         if crc is not None:
