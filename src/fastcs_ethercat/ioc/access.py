@@ -1,0 +1,229 @@
+"""EPICS access security (an ACF file) for the IOC's Channel Access records.
+
+A site restricts who may write by an ACF file: `load_access_security(path)`
+checks it and hands it to EPICS, which reads it at iocInit. Records belong to
+the access security group (ASG) DEFAULT unless their ASG field names another;
+`assign_access_group` sets that field on the CA out records FastCS made for
+given attributes, which must happen after the CA transport connected (the
+records exist) and before it serves (the database is loaded): in between runs
+`AccessSecurity.connect`, a transport to list after the CA one.
+
+Two ways to use it (see ioc/access-example.acf):
+- without ASGs on records, an ACF whose DEFAULT group allows WRITE only to
+  some users/hosts restricts every write;
+- with `group_of` naming OUTPUTS/COE for output and CoE attributes, only those
+  records are restricted and DEFAULT may stay open.
+
+`--read-only` (`AccessSecurity(read_only=True)`) adds an ASG READ_ONLY without
+write rules to the site's ACF (or to an open one) and puts every out record
+in it, so CA clients see each output as read-only and cannot write it.
+
+Limit: the ACF governs Channel Access only. FastCS serves PVA through p4p,
+not through the IOC database, so EPICS access security never sees PVA puts.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import ctypes
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+from collections.abc import Callable, Iterable
+from pathlib import Path
+from typing import Any, Final
+
+from fastcs.attributes import Attribute
+from fastcs.controllers import ControllerAPI
+from fastcs.transports import Transport
+
+from fastcs_ethercat.errors import UserError
+from fastcs_ethercat.ioc.fastcs_hooks import endpoints_of
+
+ACCESS_SECURITY_CONFIG_KEY: Final = "access_security_file"
+"""IOC config key (and `--acf` flag) naming the ACF file."""
+OUTPUTS_GROUP: Final = "OUTPUTS"
+"""ASG for output PVs (process data the IOC writes to terminals)."""
+COE_GROUP: Final = "COE"
+"""ASG for CoE parameter PVs."""
+READ_ONLY_GROUP: Final = "READ_ONLY"
+"""ASG that `--read-only` puts every CA out record in: nobody may write."""
+_READ_ONLY_RULES: Final = f"""
+# Added by fastcs-ethercat for --read-only: every output record is in here.
+ASG({READ_ONLY_GROUP}) {{
+    RULE(1, READ)
+}}
+"""
+_OPEN_DEFAULT: Final = """ASG(DEFAULT) {
+    RULE(1, READ)
+    RULE(1, WRITE)
+}
+"""
+
+_CHECK_SCRIPT: Final = """
+import ctypes, sys
+from epicscorelibs.ioc import Com
+Com.asInitFile.argtypes = (ctypes.c_char_p, ctypes.c_char_p)
+Com.asInitFile.restype = ctypes.c_long
+sys.exit(0 if Com.asInitFile(sys.argv[1].encode(), None) == 0 else 1)
+"""
+_ANSI: Final = re.compile(r"\x1b\[[0-9;]*m")
+_AT_LINE: Final = re.compile(r"\s*at line (\d+):?")
+
+
+def check_acf(path: Path) -> None:
+    """Parse `path` with EPICS's own ACF parser (in a child process, so this
+    process's access security stays untouched); `UserError` on any complaint.
+
+    EPICS skips rules with unknown keywords with only a warning; here that is
+    an error too, as a mistyped WRITE would silently deny every write.
+    """
+    if not path.is_file():
+        raise UserError("access security file not found", path=path)
+    done = subprocess.run(
+        [sys.executable, "-c", _CHECK_SCRIPT, str(path)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    complaint = _ANSI.sub("", done.stdout + done.stderr).strip()
+    if done.returncode != 0 or complaint:
+        raise _acf_error(path, complaint or "EPICS rejected the file")
+
+
+def _acf_error(path: Path, complaint: str) -> UserError:
+    words = " ".join(complaint.split())
+    for prefix in ("ERROR ", "WARNING "):
+        words = words.replace(prefix, "")
+    line = _AT_LINE.search(words)
+    where = f"line {line.group(1)}" if line else None
+    message = _AT_LINE.sub("", words, count=1).strip() or words
+    return UserError(message, path=path, where=where)
+
+
+def load_access_security(path: Path) -> None:
+    """Check `path` and make iocInit load it; call before the CA transport serves."""
+    if _database_loaded():
+        raise RuntimeError("access security must be loaded before iocInit")
+    check_acf(path)
+    from epicscorelibs.ioc import dbCore
+
+    as_set_filename = dbCore.asSetFilename
+    as_set_filename.argtypes = (ctypes.c_char_p,)
+    as_set_filename.restype = ctypes.c_int
+    if as_set_filename(str(path.resolve()).encode()) != 0:
+        raise UserError("EPICS did not accept the access security file", path=path)
+
+
+def access_security_active() -> bool:
+    """Whether EPICS access security is on (after iocInit loaded an ACF)."""
+    from epicscorelibs.ioc import Com
+
+    return bool(ctypes.c_int.in_dll(Com, "asActive").value)
+
+
+def assign_access_group(
+    attributes: Iterable[Attribute[Any, Any]], group: str
+) -> list[str]:
+    """Set ASG=`group` on the CA out records of `attributes`; their names.
+
+    Only between the CA transport's connect and serve (see module docstring).
+    Attributes without a CA out record (read-only ones) are skipped.
+    """
+    if _database_loaded():
+        raise RuntimeError("ASG fields must be set before the CA database loads")
+    names = []
+    for attribute in attributes:
+        record = endpoints_of(attribute).ca_out
+        if record is not None:
+            record.ASG = group
+            names.append(str(record))
+    return names
+
+
+def read_only_acf(site_acf: Path | None, directory: Path) -> Path:
+    """An ACF in `directory`: the site's (or an open DEFAULT) plus READ_ONLY.
+
+    CA clients then see every output as read-only (cainfo: "read, no write";
+    Phoebus draws it so), which is how `--read-only` shows on the PVs.
+    """
+    if site_acf is not None and not site_acf.is_file():
+        raise UserError("access security file not found", path=site_acf)
+    text = site_acf.read_text(encoding="utf-8") if site_acf else _OPEN_DEFAULT
+    if re.search(rf"\bASG\(\s*{READ_ONLY_GROUP}\s*\)", text):
+        raise UserError(f"ASG {READ_ONLY_GROUP} is reserved", path=site_acf)
+    path = directory / "read-only.acf"
+    path.write_text(text + _READ_ONLY_RULES, encoding="utf-8")
+    return path
+
+
+class AccessSecurity(Transport):
+    """Loads an ACF and assigns ASGs; list it after the CA transport.
+
+    FastCS connects every transport before any serves, so `connect` runs with
+    the CA records built and the database not yet loaded. It serves no PVs.
+    `group_of` names the ASG of an attribute, or None to leave it in DEFAULT.
+    `read_only` puts every out record in READ_ONLY instead (the ACF used is
+    `read_only_acf(acf, ...)`, written to a temporary directory).
+    """
+
+    def __init__(
+        self,
+        acf: Path | None,
+        group_of: Callable[[Attribute[Any, Any]], str | None] | None = None,
+        *,
+        read_only: bool = False,
+    ) -> None:
+        self.acf = acf
+        self.group_of = group_of
+        self.read_only = read_only
+        self.assigned: dict[str, str] = {}
+        """Record name -> ASG, for logs and tests."""
+        self._scratch: Path | None = None
+
+    def connect(
+        self, controller_apis: list[ControllerAPI], loop: asyncio.AbstractEventLoop
+    ) -> None:
+        group_of = self.group_of
+        acf = self.acf
+        if self.read_only:
+            self._scratch = Path(tempfile.mkdtemp(prefix="fastcs-ethercat-acf-"))
+            acf = read_only_acf(acf, self._scratch)
+            group_of = _everything_read_only
+        if acf is not None:
+            load_access_security(acf)
+        if group_of is None:
+            return
+        for root in controller_apis:
+            for api in root.walk_api():
+                for attribute in api.attributes.values():
+                    group = group_of(attribute)
+                    if group is not None:
+                        for name in assign_access_group([attribute], group):
+                            self.assigned[name] = group
+
+    async def serve(self) -> None:
+        """Nothing to serve: EPICS enforces the rules from iocInit on.
+
+        The CA transport, listed before, ran iocInit in its first step, so the
+        generated read-only ACF has been read and can go.
+        """
+        await asyncio.sleep(0)
+        if self._scratch is not None:
+            shutil.rmtree(self._scratch, ignore_errors=True)
+            self._scratch = None
+
+    def __repr__(self) -> str:
+        return f"AccessSecurity(acf={self.acf})"
+
+
+def _everything_read_only(attribute: Attribute[Any, Any]) -> str:
+    return READ_ONLY_GROUP
+
+
+def _database_loaded() -> bool:
+    from softioc.pythonSoftIoc import RecordWrapper
+
+    return RecordWrapper.is_builder_reset()

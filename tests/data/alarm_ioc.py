@@ -1,0 +1,167 @@
+"""A small IOC for the alarm and access-security tests, driven over stdin.
+
+    python tests/data/alarm_ioc.py --prefix P [--acf FILE] [--read-only] [--extra N]
+
+Serves CA and PVA (through our launcher's transports) for one controller with
+a float, an enum, a waveform, an output, a CoE-like parameter and a setting;
+the output goes to ASG OUTPUTS, the parameter to ASG COE, the setting stays
+in DEFAULT; a write-only attribute refuses every write. Each stdin line is a command,
+answered by one `done <command> <number>` line on stdout:
+
+    alarm NAME SEVERITY STATUS [MESSAGE...]   set_alarm, number: PVs reached
+    clear NAME                                clear_alarm
+    alarm-all SEVERITY STATUS                 set_alarms on every attribute
+                                              (also prints how long it took)
+    update NAME VALUE                         attribute.update(value)
+    asactive                                  1 if access security is on
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import enum
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from fastcs.attributes import Attribute, AttrR, AttrRW, AttrW
+from fastcs.control_system import FastCS
+from fastcs.controllers import Controller, ControllerAPI
+from fastcs.datatypes import Enum, Float, Int, Waveform
+from fastcs.transports import Transport
+
+from fastcs_ethercat.ioc.access import (
+    COE_GROUP,
+    OUTPUTS_GROUP,
+    AccessSecurity,
+    access_security_active,
+)
+from fastcs_ethercat.ioc.alarms import (
+    Severity,
+    Status,
+    clear_alarm,
+    set_alarm,
+    set_alarms,
+)
+from fastcs_ethercat.ioc.launch import LaunchOptions, build_transports
+
+
+class Mode(enum.Enum):
+    IDLE = 0
+    RUN = 1
+
+
+class AlarmTestController(Controller):
+    """One attribute of each kind the alarm code treats differently."""
+
+    def __init__(self, extra: int = 0) -> None:
+        super().__init__(description="alarm test")
+        for index in range(extra):
+            self.add_attribute(f"Extra{index}", AttrR(Float(), initial_value=index))
+        self.add_attribute("Temperature", AttrR(Float(prec=2), initial_value=21.5))
+        self.add_attribute("Mode", AttrR(Enum(Mode), initial_value=Mode.RUN))
+        self.add_attribute(
+            "Samples",
+            AttrR(
+                Waveform(np.int16, shape=(4,)),
+                initial_value=np.array([1, 2, 3, 4], dtype=np.int16),
+            ),
+        )
+        self.add_attribute("Output", AttrRW(Int(), initial_value=5))
+        self.add_attribute("CoeGain", AttrRW(Float(prec=3), initial_value=1.5))
+        self.add_attribute("Setting", AttrRW(Int(), initial_value=7))
+        refusing = AttrW(Int())
+        refusing.set_on_put_callback(refuse_write)
+        self.add_attribute("Refusing", refusing)
+
+
+async def refuse_write(attribute: AttrW[Any, Any], value: Any) -> None:
+    """A write the device rejects, as an ADS write error would."""
+    raise RuntimeError(f"device refused {value}")
+
+
+def group_of(attribute: Attribute[Any, Any]) -> str | None:
+    return {"Output": OUTPUTS_GROUP, "CoeGain": COE_GROUP}.get(attribute.name)
+
+
+class Ready(Transport):
+    """Prints the ready line once the real transports had time to start."""
+
+    def connect(
+        self, controller_apis: list[ControllerAPI], loop: asyncio.AbstractEventLoop
+    ) -> None:
+        """Nothing to connect."""
+
+    async def serve(self) -> None:
+        for _ in range(3):
+            await asyncio.sleep(0)
+        print("alarm ioc ready", flush=True)
+
+
+async def handle(controller: AlarmTestController, line: str) -> int:
+    words = line.split()
+    attributes: dict[str, Attribute[Any, Any]] = controller.attributes
+    match words:
+        case ["alarm", name, severity, status, *message]:
+            return set_alarm(
+                attributes[name], Severity[severity], Status[status], " ".join(message)
+            )
+        case ["clear", name]:
+            return clear_alarm(attributes[name])
+        case ["alarm-all", severity, status]:
+            started = time.perf_counter()
+            reached = set_alarms(
+                attributes.values(), Severity[severity], Status[status]
+            )
+            took = time.perf_counter() - started
+            print(f"alarm-all: {reached} PVs in {took * 1e3:.1f} ms", flush=True)
+            return reached
+        case ["update", name, value]:
+            attribute = attributes[name]
+            assert isinstance(attribute, AttrR)
+            await attribute.update(attribute.datatype.validate(float(value)))
+            return 1
+        case ["asactive"]:
+            return int(access_security_active())
+    raise ValueError(f"unknown command {line!r}")
+
+
+def read_commands(
+    controller: AlarmTestController, loop: asyncio.AbstractEventLoop
+) -> None:
+    for line in sys.stdin:
+        if line.strip():
+            future = asyncio.run_coroutine_threadsafe(handle(controller, line), loop)
+            try:
+                print(f"done {line.split()[0]} {future.result(30)}", flush=True)
+            except Exception as error:
+                print(f"failed {line.strip()}: {error!r}", flush=True)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--prefix", required=True)
+    parser.add_argument("--acf", type=Path)
+    parser.add_argument("--read-only", action="store_true")
+    parser.add_argument("--extra", type=int, default=0, help="more float AttrRs")
+    arguments = parser.parse_args()
+
+    loop = asyncio.new_event_loop()
+    asyncio.set_event_loop(loop)
+    controller = AlarmTestController(arguments.extra)
+    controller.set_path([arguments.prefix])
+    transports = [
+        *build_transports(LaunchOptions()),
+        AccessSecurity(arguments.acf, group_of, read_only=arguments.read_only),
+        Ready(),
+    ]
+    threading.Thread(target=read_commands, args=(controller, loop), daemon=True).start()
+    FastCS(controller, transports, loop).run(interactive=False)
+
+
+if __name__ == "__main__":
+    main()

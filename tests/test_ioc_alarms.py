@@ -1,0 +1,355 @@
+"""Alarms on FastCS attributes: in-process on p4p PVs, end to end in an IOC.
+
+The IOC (tests/data/alarm_ioc.py) runs in a subprocess on free loopback ports
+and takes commands on stdin; real clients read the result: `caget -a`, aioca
+with FORMAT_TIME (in a subprocess), `pvget` and p4p. Everything started is
+killed by PID, caRepeater included.
+"""
+
+from __future__ import annotations
+
+import json
+import queue
+import re
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Iterator, Sequence
+from typing import Any
+
+import pytest
+from fastcs.attributes import AttrR, AttrRW
+from fastcs.datatypes import Float, Int
+from fastcs.transports.epics.pva._pv_handlers import (
+    make_shared_read_pv,
+    make_shared_write_pv,
+)
+from p4p.client.thread import RemoteError
+
+from fastcs_ethercat.ioc.alarms import (
+    AlarmState,
+    PvaStatus,
+    Severity,
+    Status,
+    clear_alarm,
+    pva_status,
+    set_alarm,
+)
+from fastcs_ethercat.ioc.fastcs_hooks import (
+    WRITTEN_AGAINST_FASTCS,
+    check_fastcs_shape,
+    endpoints_of,
+)
+from tests.conftest import TEST_DATA
+from tests.ioc_support import (
+    START_TIMEOUT,
+    IocProcess,
+    caget,
+    ioc_env,
+    new_token,
+    stop_pid,
+    wait_for,
+)
+
+NAMES = ("Temperature", "Mode", "Samples", "Output", "CoeGain", "Setting", "Refusing")
+CA_NAMES = (
+    "Temperature", "Mode", "Samples", "Output_RBV", "Output",
+    "CoeGain_RBV", "CoeGain", "Setting_RBV", "Setting", "Refusing",
+)  # fmt: skip
+SCALAR_PVA_NAMES = tuple(name for name in CA_NAMES if name != "Samples")
+
+
+def test_fastcs_still_has_the_shape_the_hooks_read() -> None:
+    import fastcs
+
+    check_fastcs_shape()
+    assert fastcs.__version__ == WRITTEN_AGAINST_FASTCS, (
+        "FastCS was upgraded: review ioc/fastcs_hooks.py, then update "
+        "WRITTEN_AGAINST_FASTCS"
+    )
+
+
+def test_pva_status_groups_ca_statuses_as_qsrv_does() -> None:
+    assert pva_status(Status.NO_ALARM) is PvaStatus.NO_ALARM
+    assert pva_status(Status.COMM) is PvaStatus.DRIVER
+    assert pva_status(Status.TIMEOUT) is PvaStatus.DRIVER
+    assert pva_status(Status.UDF) is PvaStatus.DRIVER
+    assert pva_status(Status.READ) is PvaStatus.DEVICE
+    assert pva_status(Status.WRITE) is PvaStatus.DEVICE
+    assert pva_status(Status.STATE) is PvaStatus.DEVICE
+    assert pva_status(Status.SOFT) is PvaStatus.RECORD
+    assert pva_status(Status.WRITE_ACCESS) is PvaStatus.DB
+    assert all(isinstance(pva_status(status), PvaStatus) for status in Status)
+
+
+def test_pva_message_names_the_ca_status() -> None:
+    assert AlarmState(Severity.INVALID, Status.COMM).pva_message() == "COMM"
+    lost = AlarmState(Severity.INVALID, Status.COMM, "PLC lost")
+    assert lost.pva_message() == "COMM: PLC lost"
+    assert AlarmState(Severity.NO_ALARM, Status.NO_ALARM).pva_message() == ""
+
+
+def test_an_attribute_without_transports_has_no_endpoints() -> None:
+    attribute = AttrR(Int())
+
+    assert not endpoints_of(attribute)
+    assert set_alarm(attribute, Severity.INVALID, Status.COMM) == 0
+
+
+async def test_alarm_reaches_fastcs_pva_pvs_and_keeps_the_value() -> None:
+    reading = AttrR(Float(prec=2), initial_value=2.5)
+    output = AttrRW(Int(), initial_value=4)
+    read_pv = make_shared_read_pv(reading)
+    rbv_pv = make_shared_read_pv(output)
+    write_pv = make_shared_write_pv(output)
+
+    found = endpoints_of(output)
+    reached = set_alarm(reading, Severity.INVALID, Status.COMM, "PLC lost")
+    reached += set_alarm(output, Severity.MAJOR, Status.WRITE)
+    alarmed = [as_dict(pv.current()) for pv in (read_pv, rbv_pv, write_pv)]
+    cleared = clear_alarm(reading)
+    after = as_dict(read_pv.current())
+
+    assert found.pva_read is rbv_pv and found.pva_write is write_pv
+    assert found.ca_in is None and found.ca_out is None
+    assert reached == 3
+    assert alarmed[0]["value"] == 2.5
+    assert alarmed[0]["alarm"] == {
+        "severity": 3, "status": 2, "message": "COMM: PLC lost"
+    }  # fmt: skip
+    assert alarmed[1]["alarm"]["severity"] == alarmed[2]["alarm"]["severity"] == 2
+    assert alarmed[1]["alarm"]["status"] == PvaStatus.DEVICE
+    assert cleared == 1
+    assert after["value"] == 2.5
+    assert after["alarm"] == {"severity": 0, "status": 0, "message": ""}
+
+
+@pytest.fixture(scope="module")
+def ioc() -> Iterator[IocProcess]:
+    token = new_token()
+    prefix = f"ALM{token[:6].upper()}"
+    process = start_commanded_ioc(prefix, token, [])
+    try:
+        process.wait_for_line("alarm ioc ready", START_TIMEOUT)
+        first = process.pv("Temperature")
+        assert wait_for(lambda: first in caget(process, first), START_TIMEOUT)
+        yield process
+    finally:
+        process.stop()
+
+
+def start_commanded_ioc(
+    prefix: str, token: str, arguments: Sequence[str]
+) -> IocProcess:
+    """tests/data/alarm_ioc.py with a pipe to its stdin for commands."""
+    env = ioc_env(token)
+    process = subprocess.Popen(
+        [
+            sys.executable,
+            str(TEST_DATA / "alarm_ioc.py"),
+            "--prefix",
+            prefix,
+            *arguments,
+        ],
+        env=env,
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
+    lines: queue.Queue[str] = queue.Queue()
+    assert process.stdout is not None
+    stdout = process.stdout
+    reader = threading.Thread(
+        target=lambda: [lines.put(x) for x in stdout], daemon=True
+    )
+    reader.start()
+    return IocProcess(process, prefix, env, token, lines, reader=reader)
+
+
+def command(ioc: IocProcess, line: str) -> int:
+    """Send one command; the number the IOC answers with."""
+    assert ioc.process.stdin is not None
+    ioc.process.stdin.write(line + "\n")
+    ioc.process.stdin.flush()
+    answer = ioc.wait_for_line(r"^(done|failed) ", 30)
+    assert answer.startswith("done "), answer
+    return int(answer.split()[2])
+
+
+def ca_alarms(ioc: IocProcess, names: Sequence[str]) -> dict[str, str]:
+    """`STAT SEVR` of each record as `caget -a` prints them ("" when none)."""
+    values = caget(ioc, "-a", *(ioc.pv(name) for name in names))
+    result = {}
+    for name in names:
+        words = values.get(ioc.pv(name), "").split()
+        tail = words[-2:]
+        alarmed = len(tail) == 2 and tail[1] in {"MINOR", "MAJOR", "INVALID"}
+        result[name] = " ".join(tail) if alarmed else ""
+    return result
+
+
+def aioca_alarms(ioc: IocProcess, names: Sequence[str]) -> dict[str, list[int]]:
+    """[severity, status] of each PV read by aioca with FORMAT_TIME."""
+    script = (
+        "import asyncio, aioca, json, sys\n"
+        "async def main(names):\n"
+        "    values = await aioca.caget(names, format=aioca.FORMAT_TIME, timeout=10)\n"
+        "    print(json.dumps({n: [v.severity, v.status]"
+        " for n, v in zip(names, values)}))\n"
+        "asyncio.run(main(sys.argv[1:]))\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", script, *(ioc.pv(name) for name in names)],
+        env=ioc.env,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    by_pv = json.loads(done.stdout.strip().splitlines()[-1])
+    return {name: by_pv[ioc.pv(name)] for name in names}
+
+
+def p4p_alarms(ioc: IocProcess, names: Sequence[str]) -> dict[str, dict[str, Any]]:
+    with ioc.p4p_context() as context:
+        values: Any = context.get([ioc.pv(name) for name in names])
+    return {
+        name: as_dict(value)["alarm"] for name, value in zip(names, values, strict=True)
+    }
+
+
+def pvget_severities(ioc: IocProcess, names: Sequence[str]) -> dict[str, int]:
+    """alarm.severity from `pvget -M json` (JSON5-like: keys are not quoted)."""
+    output = ioc.tool("pvget", "-M", "json", *(ioc.pv(name) for name in names))
+    severities = {}
+    for line in output.splitlines():
+        pv, _, text = line.partition(" ")
+        found = re.search(r"alarm:\{severity:(\d)", text)
+        if pv.startswith(ioc.prefix) and found:
+            severities[pv.split(":", 1)[1]] = int(found.group(1))
+    return severities
+
+
+def test_target_lost_shows_invalid_comm_everywhere_then_clears(
+    ioc: IocProcess,
+) -> None:
+    started = time.monotonic()
+    reached = command(ioc, "alarm-all INVALID COMM")
+    seen = wait_for(
+        lambda: all(v == "COMM INVALID" for v in ca_alarms(ioc, CA_NAMES).values())
+    )
+    seen_after = time.monotonic() - started
+    on_ca = ca_alarms(ioc, CA_NAMES)
+    on_aioca = aioca_alarms(ioc, CA_NAMES)
+    on_p4p = p4p_alarms(ioc, SCALAR_PVA_NAMES)
+    on_pvget = pvget_severities(ioc, SCALAR_PVA_NAMES)
+    waveform = p4p_alarms(ioc, ["Samples"])["Samples"]
+    for name in NAMES:
+        command(ioc, f"clear {name}")
+    cleared = ca_alarms(ioc, CA_NAMES)
+    cleared_pva = p4p_alarms(ioc, SCALAR_PVA_NAMES)
+
+    # 3 read-only attributes x (CA in + PVA), 3 read-write x (2 CA + 2 PVA),
+    # 1 write-only x (CA out + PVA)
+    assert reached == 3 * 2 + 3 * 4 + 1 * 2
+    assert seen, on_ca
+    print(f"\nalarm seen by caget {seen_after:.2f} s after the command")
+    assert set(on_ca.values()) == {"COMM INVALID"}
+    assert all(value == [3, 9] for value in on_aioca.values()), on_aioca
+    assert all(
+        alarm == {"severity": 3, "status": 2, "message": "COMM"}
+        for alarm in on_p4p.values()
+    ), on_p4p
+    assert on_pvget == dict.fromkeys(SCALAR_PVA_NAMES, 3)
+    assert waveform["severity"] == 3 and waveform["message"] == "COMM"
+    assert set(cleared.values()) == {""}, cleared
+    assert all(alarm["severity"] == 0 for alarm in cleared_pva.values())
+
+
+def test_only_the_alarmed_attribute_goes_into_alarm(ioc: IocProcess) -> None:
+    command(ioc, "alarm Mode MINOR STATE terminal left OP")
+    wait_for(lambda: ca_alarms(ioc, ["Mode"])["Mode"])
+    on_ca = ca_alarms(ioc, ["Mode", "Temperature", "Output_RBV"])
+    on_p4p = p4p_alarms(ioc, ["Mode", "Temperature"])
+    command(ioc, "clear Mode")
+
+    assert on_ca == {"Mode": "STATE MINOR", "Temperature": "", "Output_RBV": ""}
+    assert on_p4p["Mode"] == {
+        "severity": 1, "status": 1, "message": "STATE: terminal left OP"
+    }  # fmt: skip
+    assert on_p4p["Temperature"]["severity"] == 0
+
+
+def test_a_new_value_clears_the_alarm(ioc: IocProcess) -> None:
+    command(ioc, "alarm Temperature INVALID READ")
+    wait_for(lambda: ca_alarms(ioc, ["Temperature"])["Temperature"])
+    command(ioc, "update Temperature 30.25")
+
+    after = wait_for(
+        lambda: (
+            (v := caget(ioc, "-a", ioc.pv("Temperature"))[ioc.pv("Temperature")])
+            and "30.25" in v
+            and v
+        )
+    )
+    on_p4p = p4p_alarms(ioc, ["Temperature"])
+
+    assert after and not after.endswith("INVALID"), after
+    assert on_p4p["Temperature"]["severity"] == 0
+
+
+MONITOR_SCRIPT = """
+import asyncio, aioca, json, sys
+async def main(name, seconds):
+    def show(value):
+        print(json.dumps([value.severity, value.status, float(value)]), flush=True)
+    subscription = aioca.camonitor(name, show, format=aioca.FORMAT_TIME)
+    await asyncio.sleep(seconds)
+    subscription.close()
+asyncio.run(main(sys.argv[1], float(sys.argv[2])))
+"""
+
+
+def test_a_monitor_sees_an_output_record_go_into_alarm_and_out(
+    ioc: IocProcess,
+) -> None:
+    monitor = subprocess.Popen(
+        [sys.executable, "-c", MONITOR_SCRIPT, ioc.pv("Output"), "6"],
+        env=ioc.env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+        text=True,
+    )
+    try:
+        assert monitor.stdout is not None
+        first = json.loads(monitor.stdout.readline())
+        command(ioc, "alarm Output MAJOR WRITE")
+        time.sleep(0.5)
+        command(ioc, "clear Output")
+        output, _ = monitor.communicate(timeout=30)
+    finally:
+        stop_pid(monitor.pid)
+    updates = [first] + [json.loads(line) for line in output.splitlines()]
+
+    assert updates == [[0, 0, 5.0], [2, 2, 5.0], [0, 0, 5.0]]
+
+
+def as_dict(value: Any) -> dict[str, Any]:
+    """A p4p Value, or a p4p-unwrapped one (ntfloat, ntenum...), as a dict."""
+    return getattr(value, "raw", value).todict()
+
+
+def test_a_refused_write_puts_the_output_in_alarm(ioc: IocProcess) -> None:
+    """FastCS itself does this when the IO's send raises (an ADS write error)."""
+    name = ioc.pv("Refusing")
+    ioc.tool("caput", name, "3")
+    on_ca = wait_for(lambda: ca_alarms(ioc, ["Refusing"])["Refusing"])
+    with ioc.p4p_context() as context:
+        with pytest.raises(RemoteError, match="device refused 4"):
+            context.put(name, 4)
+        on_pva = as_dict(context.get(name))["alarm"]
+
+    assert on_ca == "WRITE MAJOR"
+    assert on_pva["severity"] == Severity.MAJOR
+    assert "device refused 4" in on_pva["message"]
