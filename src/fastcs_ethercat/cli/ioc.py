@@ -58,6 +58,10 @@ def ioc_command(
     read_only: Annotated[
         bool, typer.Option("--read-only", help="Serve every output read-only.")
     ] = False,
+    acf: Annotated[
+        Path | None,
+        typer.Option("--acf", help="EPICS access security file (CA writes)."),
+    ] = None,
     list_pvs: Annotated[
         bool,
         typer.Option("--list-pvs", help="Print every PV with type and source; exit."),
@@ -73,8 +77,13 @@ def ioc_command(
         "ams_net_id": ams_net_id,
         "poll_rate_hz": poll_rate,
         "read_only": True if read_only else None,
+        "access_security_file": str(acf) if acf is not None else None,
     }
     settings = load_ioc_config(config, overrides)
+    if settings.access_security_file is not None:
+        from fastcs_ethercat.ioc.access import check_acf
+
+        check_acf(settings.access_security_file)
     if list_pvs:
         entries, warnings = app.list_pvs(settings)
         for warning in warnings:

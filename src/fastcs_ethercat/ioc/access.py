@@ -219,6 +219,22 @@ class AccessSecurity(Transport):
         return f"AccessSecurity(acf={self.acf})"
 
 
+def access_group_of(attribute: Attribute[Any, Any]) -> str | None:
+    """The ASG of one of our attributes: outputs and CoE parameters are the
+    writes a site restricts; everything else stays in DEFAULT."""
+    from fastcs.attributes.attr_w import AttrW
+
+    from fastcs_ethercat.ioc.attributes import CoeRef, PointRef
+
+    if not isinstance(attribute, AttrW):
+        return None
+    if isinstance(attribute.io_ref, CoeRef):
+        return COE_GROUP
+    if isinstance(attribute.io_ref, PointRef):
+        return OUTPUTS_GROUP
+    return None
+
+
 def _everything_read_only(attribute: Attribute[Any, Any]) -> str:
     return READ_ONLY_GROUP
 

@@ -118,6 +118,9 @@ class IocConfig(_Strict):
     """Where to write Phoebus .bob screens; none when unset."""
     read_only: bool = False
     """Serve outputs (RxPDO symbols, CoE objects) read-only."""
+    access_security_file: Path | None = None
+    """EPICS access security (ACF) for CA: who may write outputs (ASG
+    `OUTPUTS`) and CoE parameters (ASG `COE`); see ioc/access-example.acf."""
 
     @field_validator("prefix")
     @classmethod
@@ -230,8 +233,9 @@ def _resolve_paths(raw: dict[str, Any], base: Path) -> None:
 
     if isinstance(raw.get("terminal_dirs"), list):
         raw["terminal_dirs"] = [resolve(item) for item in raw["terminal_dirs"]]
-    if "screens_dir" in raw:
-        raw["screens_dir"] = resolve(raw["screens_dir"])
+    for key in ("screens_dir", "access_security_file"):
+        if key in raw:
+            raw[key] = resolve(raw[key])
     route = raw.get("route")
     if isinstance(route, dict) and "password_file" in route:
         route["password_file"] = resolve(route["password_file"])

@@ -48,6 +48,8 @@ class LaunchOptions:
     ca_aliases: Mapping[str, str] = field(default_factory=dict)
     """Extra CA record names, full PV -> alias (CA only; PVA has no aliases)."""
     callback_queue_size: int = DEFAULT_CALLBACK_QUEUE_SIZE
+    access_security_file: Path | None = None
+    """ACF loaded at iocInit; outputs get ASG OUTPUTS, CoE parameters COE."""
 
     def __post_init__(self) -> None:
         if not (self.ca or self.pva):
@@ -71,6 +73,12 @@ def build_transports(options: LaunchOptions) -> list[Transport]:
                 epicsca=EpicsCAOptions(aliases=dict(options.ca_aliases)), gui=gui
             )
         )
+        if options.access_security_file is not None:
+            from fastcs_ethercat.ioc.access import AccessSecurity, access_group_of
+
+            transports.append(
+                AccessSecurity(options.access_security_file, access_group_of)
+            )
     if options.pva:
         from fastcs.transports.epics.pva.transport import EpicsPVATransport
 
