@@ -11,6 +11,7 @@ import sys
 import typer
 
 from fastcs_ethercat import __version__
+from fastcs_ethercat.cli.bench import bench_app
 from fastcs_ethercat.cli.ioc import demo_command, ioc_command
 from fastcs_ethercat.cli.sim import sim_app
 from fastcs_ethercat.cli.terminals import terminals_app
@@ -25,6 +26,7 @@ _typer_app = typer.Typer(
 )
 _typer_app.add_typer(terminals_app, name="terminals")
 _typer_app.add_typer(sim_app, name="sim")
+_typer_app.add_typer(bench_app, name="bench")
 _typer_app.command("ioc")(ioc_command)
 _typer_app.command("demo")(demo_command)
 

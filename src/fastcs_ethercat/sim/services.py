@@ -20,6 +20,9 @@ import struct
 from dataclasses import dataclass, field
 from typing import Final
 
+import numpy as np
+import numpy.typing as npt
+
 from fastcs_ethercat.ads.commands import ReadDeviceInfoResponse
 from fastcs_ethercat.ads.constants import (
     IO_DEVICE_TYPE_ETHERCAT,
@@ -37,6 +40,7 @@ from fastcs_ethercat.ads.ethercat import (
     encode_device_type,
 )
 from fastcs_ethercat.ads.sums import (
+    SumReadItem,
     SumReadRequest,
     SumReadResponse,
     SumReadWriteRequest,
@@ -46,7 +50,7 @@ from fastcs_ethercat.ads.sums import (
 )
 from fastcs_ethercat.ads.wire import decode_text
 from fastcs_ethercat.sim.device import SimDevice
-from fastcs_ethercat.sim.layout import AREAS, ImageArea
+from fastcs_ethercat.sim.layout import AREAS, INPUTS, OUTPUTS, ImageArea
 from fastcs_ethercat.sim.master import SlaveRuntime
 
 VERSION: Final = (3, 1, 2103)
@@ -176,6 +180,9 @@ class DevicePort(Port):
     """Port 27904 + n: the device's symbols, handles and process images."""
 
     device: SimDevice | None = None
+    plans: SumReadPlans = field(
+        default_factory=lambda: SumReadPlans(), repr=False, compare=False
+    )
 
     @property
     def dev(self) -> SimDevice:
@@ -304,13 +311,20 @@ class DevicePort(Port):
     def _sum_read(self, count: int, length: int, data: bytes) -> Outcome:
         if self._too_many(count):
             return AdsReturnCode.DEVICE_INVALID_SIZE, b""
+        image = self.dev.image
+        plan = self.plans.lookup(data, image.inputs, image.outputs)
+        if plan is not None and plan.count == count:
+            if length < plan.read_length:
+                return AdsReturnCode.DEVICE_INVALID_SIZE, b""
+            return AdsReturnCode.NO_ERROR, plan.answer(image.inputs, image.outputs)
         try:
             request = SumReadRequest.decode(data, count)
         except AdsCodecError as error:
             return error.return_code, b""
+        if not self.plans.knows(data):
+            self.plans.learn(data, request.items, image.inputs, image.outputs)
         if length < request.read_length:
             return AdsReturnCode.DEVICE_INVALID_SIZE, b""
-        image = self.dev.image
         # The hot path: plain slices of the images, single bits by lookup.
         areas = {area.byte_group: image.buffer(area) for area in AREAS}
         bits = {area.bit_group: image.buffer(area) for area in AREAS}
@@ -410,6 +424,145 @@ class SlavePort(Port):
     def write(self, group: int, offset: int, data: bytes) -> int:
         assert self.device is not None and self.runtime is not None
         return self.device.ethercat.slave_write(self.runtime, group, offset, data)
+
+
+# -- the sum read fast path -----------------------------------------------------
+
+_MAX_PLANS: Final = 256
+"""Distinct sum read requests remembered per device port (a poller sends the
+same few every cycle); past this the memory starts again."""
+
+_IndexArray = npt.NDArray[np.intp]
+
+
+@dataclass(frozen=True, slots=True)
+class _Gather:
+    """Where one image's bytes and bits go in a sum read answer's data."""
+
+    byte_to: _IndexArray
+    byte_from: _IndexArray
+    bit_to: _IndexArray
+    bit_from: _IndexArray
+    bit_shift: npt.NDArray[np.uint8]
+
+    def apply(self, data: npt.NDArray[np.uint8], buffer: bytearray) -> None:
+        source = np.frombuffer(buffer, dtype=np.uint8)
+        if len(self.byte_to):
+            data[self.byte_to] = source[self.byte_from]
+        if len(self.bit_to):
+            data[self.bit_to] = (source[self.bit_from] >> self.bit_shift) & 1
+
+
+@dataclass(frozen=True, slots=True)
+class SumReadPlan:
+    """A sum read whose every item is a valid image slice or single bit,
+    precompiled into index arrays: answered with two numpy gathers."""
+
+    count: int
+    read_length: int
+    header: bytes
+    data_size: int
+    inputs: _Gather
+    outputs: _Gather
+
+    def answer(self, inputs: bytearray, outputs: bytearray) -> bytes:
+        data = np.zeros(self.data_size, dtype=np.uint8)
+        self.inputs.apply(data, inputs)
+        self.outputs.apply(data, outputs)
+        return self.header + data.tobytes()
+
+
+def compile_sum_read(
+    items: tuple[SumReadItem, ...], inputs: bytearray, outputs: bytearray
+) -> SumReadPlan | None:
+    """The plan for `items`, or None when any item needs the general path
+    (another group, out of range, a multi-bit read)."""
+    gathers: dict[int, tuple[bytearray, list[list[int]]]] = {}
+    for area, buffer in ((INPUTS, inputs), (OUTPUTS, outputs)):
+        lists: list[list[int]] = [[], [], [], [], []]
+        gathers[area.byte_group] = (buffer, lists)
+        gathers[area.bit_group] = (buffer, lists)
+    byte_groups = {INPUTS.byte_group, OUTPUTS.byte_group}
+    position = 0
+    for item in items:
+        found = gathers.get(item.index_group)
+        if found is None:
+            return None
+        buffer, (byte_to, byte_from, bit_to, bit_from, bit_shift) = found
+        offset, length = item.index_offset, item.length
+        if item.index_group in byte_groups:
+            if offset + length > len(buffer):
+                return None
+            byte_to.extend(range(position, position + length))
+            byte_from.extend(range(offset, offset + length))
+        else:
+            if length != 1 or offset >= 8 * len(buffer):
+                return None
+            bit_to.append(position)
+            bit_from.append(offset >> 3)
+            bit_shift.append(offset & 7)
+        position += length
+
+    def gather(group: int) -> _Gather:
+        byte_to, byte_from, bit_to, bit_from, bit_shift = gathers[group][1]
+        return _Gather(
+            np.asarray(byte_to, dtype=np.intp),
+            np.asarray(byte_from, dtype=np.intp),
+            np.asarray(bit_to, dtype=np.intp),
+            np.asarray(bit_from, dtype=np.intp),
+            np.asarray(bit_shift, dtype=np.uint8),
+        )
+
+    return SumReadPlan(
+        count=len(items),
+        read_length=4 * len(items) + position,
+        header=bytes(4 * len(items)),
+        data_size=position,
+        inputs=gather(INPUTS.byte_group),
+        outputs=gather(OUTPUTS.byte_group),
+    )
+
+
+@dataclass(slots=True)
+class SumReadPlans:
+    """Plans keyed by the request's raw bytes, valid for one pair of image
+    buffers: a new image (online change) or a resize forgets them all."""
+
+    plans: dict[bytes, SumReadPlan | None] = field(default_factory=dict)
+    images: tuple[bytearray, int, bytearray, int] | None = None
+
+    def _current(self, inputs: bytearray, outputs: bytearray) -> None:
+        known = self.images
+        if (
+            known is None
+            or known[0] is not inputs
+            or known[1] != len(inputs)
+            or known[2] is not outputs
+            or known[3] != len(outputs)
+        ):
+            self.plans.clear()
+            self.images = (inputs, len(inputs), outputs, len(outputs))
+
+    def lookup(
+        self, data: bytes, inputs: bytearray, outputs: bytearray
+    ) -> SumReadPlan | None:
+        self._current(inputs, outputs)
+        return self.plans.get(data)
+
+    def knows(self, data: bytes) -> bool:
+        """Whether `data` was seen (with a plan or found unplannable)."""
+        return data in self.plans
+
+    def learn(
+        self,
+        data: bytes,
+        items: tuple[SumReadItem, ...],
+        inputs: bytearray,
+        outputs: bytearray,
+    ) -> None:
+        if len(self.plans) >= _MAX_PLANS:
+            self.plans.clear()
+        self.plans[bytes(data)] = compile_sum_read(items, inputs, outputs)
 
 
 def _slice(buffer: bytearray, offset: int, length: int) -> Outcome:

@@ -34,6 +34,7 @@ from fastcs_ethercat.ioc.attributes import (
 from fastcs_ethercat.ioc.controllers.post import post
 from fastcs_ethercat.ioc.controllers.terminal import TerminalController
 from fastcs_ethercat.ioc.datatypes import IntegralFloat
+from fastcs_ethercat.ioc.health import Health
 from fastcs_ethercat.ioc.plan import MasterPlan, Point
 
 DIAGNOSTICS_PERIOD_S: Final = 1.0
@@ -124,9 +125,11 @@ class MasterController(Controller):
         reader: MasterReader | None,
         *,
         read_only: bool = False,
+        health: Health | None = None,
     ) -> None:
         super().__init__(description=plan.name, ios=[point_io])
         self.plan = plan
+        self.health = health or Health()
         self.reader = reader
         self.terminals: dict[int, TerminalController] = {}
         """Every terminal (and coupler) controller below, by slave address."""
@@ -174,7 +177,7 @@ class MasterController(Controller):
         if attr is None:
             return
         try:
-            await attr.update(from_device(attr, value))
+            await self.health.post(attr, from_device(attr, value))
         except Exception:  # one value must not stop the scan
             self.failures += 1
 
@@ -200,14 +203,15 @@ class MasterController(Controller):
     async def apply_status(self, status: MasterStatus) -> None:
         frames = status.frames
         a = self.attrs
+        fresh = self.health.post
         await post(a["Online"], True)
-        await post(a["State"], status.state)
-        await post(a["SlaveCount"], status.slave_count)
-        await post(a["CyclicFrames"], frames.cyclic_sent)
-        await post(a["CyclicLost"], frames.cyclic_lost)
-        await post(a["AcyclicFrames"], frames.acyclic_sent)
-        await post(a["AcyclicLost"], frames.acyclic_lost)
-        await post(a["LostFrames"], frames.cyclic_lost + frames.acyclic_lost)
+        await fresh(a["State"], status.state)
+        await fresh(a["SlaveCount"], status.slave_count)
+        await fresh(a["CyclicFrames"], frames.cyclic_sent)
+        await fresh(a["CyclicLost"], frames.cyclic_lost)
+        await fresh(a["AcyclicFrames"], frames.acyclic_sent)
+        await fresh(a["AcyclicLost"], frames.acyclic_lost)
+        await fresh(a["LostFrames"], frames.cyclic_lost + frames.acyclic_lost)
         await post(a["DiagErrors"], min(self.failures, 2**31 - 1))
         for address, terminal in self.terminals.items():
             position = self.terminal_positions.get(address, -1)
@@ -220,6 +224,12 @@ class MasterController(Controller):
                 await terminal.set_diagnostics(state, status.crc.get(address))
             except Exception:  # one terminal must not stop the rest
                 self.failures += 1
+
+    def target_attributes(self) -> list[AttrR[Any, Any]]:
+        """What goes invalid when the target is lost (not what the IOC knows)."""
+        own = {"NetId", "ExpectedSlaves", "Online", "DiagErrors"}
+        diag = [attr for leaf, attr in self.attrs.items() if leaf not in own]
+        return [*self.by_key.values(), *diag]
 
     async def _safe_post(self, leaf: str, value: Any) -> None:
         try:

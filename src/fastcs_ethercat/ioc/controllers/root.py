@@ -36,6 +36,11 @@ ROOT_LEAVES: Final = (
     "AdsRequestRate",
     "PollErrors",
     "LastError",
+    "ConnectionState",
+    "Reconnects",
+    "LastRecovery",
+    "ChainChanges",
+    "InvalidPvs",
 )
 
 
@@ -50,6 +55,15 @@ class PollStats:
     requests_per_second: float = 0.0
     errors: int = 0
     last_error: str = ""
+    state: str = "CONNECTED"
+    """The supervisor's view: CONNECTED, DISCONNECTED, STOPPED, RESYNCING."""
+    reconnects: int = 0
+    last_recovery_s: float = 0.0
+    chain_changes: str = ""
+    invalid: int = 0
+    """Attributes in INVALID alarm now."""
+    symbol_version: int = -1
+    """The symbol version served now (-1: unknown)."""
 
 
 StatsSource = Callable[[], PollStats]
@@ -96,7 +110,14 @@ class RootController(Controller):
                 ExactFloat(units="1/s", prec=1), description="ADS requests per second"
             ),
             "PollErrors": AttrR(Int(), description="Failed poll reads"),
-            "LastError": AttrR(String(), description="Last poll error"),
+            "LastError": AttrR(String(), description="Last ADS error"),
+            "ConnectionState": AttrR(String(), description="Link to the target"),
+            "Reconnects": AttrR(Int(), description="Reconnects and resyncs"),
+            "LastRecovery": AttrR(
+                ExactFloat(units="s", prec=2), description="Last outage, loss to poll"
+            ),
+            "ChainChanges": AttrR(String(), description="Chain change at reconnect"),
+            "InvalidPvs": AttrR(Int(), description="Attributes in INVALID alarm"),
         }
         for leaf, attr in self.attrs.items():
             self.add_attribute(names[leaf], attr)
@@ -117,7 +138,25 @@ class RootController(Controller):
             await post(a["AdsRequestRate"], stats.requests_per_second)
             await post(a["PollErrors"], min(stats.errors, 2**31 - 1))
             await post(a["LastError"], stats.last_error[:200])
+            await post(a["ConnectionState"], stats.state)
+            await post(a["Reconnects"], min(stats.reconnects, 2**31 - 1))
+            await post(a["LastRecovery"], stats.last_recovery_s)
+            await post(a["ChainChanges"], stats.chain_changes[:200])
+            await post(a["InvalidPvs"], min(stats.invalid, 2**31 - 1))
+            if stats.symbol_version >= 0:
+                await post(a["SymbolVersion"], stats.symbol_version)
         except Exception:  # a scan must never raise
+            pass
+
+    async def show_link(self, state: str, error: str) -> None:
+        """Publish a change of the link at once, not at the next scan."""
+        try:
+            a = self.attrs
+            await post(a["Connected"], state == "CONNECTED")
+            await post(a["ConnectionState"], state)
+            if error:
+                await post(a["LastError"], error[:200])
+        except Exception:  # never stop the caller (the supervisor)
             pass
 
 

@@ -19,6 +19,7 @@ from fastcs.datatypes import Bool, Enum, Int, String
 from fastcs.methods import Command
 
 from fastcs_ethercat.ads.ethercat import AlState, AlStateFlag, SlaveState
+from fastcs_ethercat.ioc.alarms import Status
 from fastcs_ethercat.ioc.attributes import (
     CoeIO,
     CoeRef,
@@ -27,7 +28,7 @@ from fastcs_ethercat.ioc.attributes import (
     attribute_for_point,
     from_device,
 )
-from fastcs_ethercat.ioc.controllers.post import post
+from fastcs_ethercat.ioc.health import Health
 from fastcs_ethercat.ioc.plan import Point, TerminalPlan
 
 DIAGNOSTIC_LEAVES: Final = (
@@ -43,6 +44,8 @@ COE_REFRESH_LEAF: Final = "CoeRefresh"
 COE_LEAF_PREFIX: Final = "Coe "
 """A CoE attribute's leaf is `Coe <attribute>` -> `CoeFilterSettings`."""
 UNKNOWN_TYPE: Final = "unknown"
+SLAVE: Final = "slave"
+"""Health reason: the terminal is not in OP or lost its link."""
 
 
 def coe_leaf(attribute: str) -> str:
@@ -106,10 +109,14 @@ class TerminalController(Controller):
         coe_io: CoeIO | None = None,
         *,
         read_only: bool = False,
+        health: Health | None = None,
     ) -> None:
         ios: list[Any] = [point_io] if coe_io is None else [point_io, coe_io]
         super().__init__(description=_describe(plan), ios=ios)
         self.plan = plan
+        self.health = health or Health()
+        self.slave_problem = ""
+        """Why the slave's points are in alarm ("" when it is in OP, linked)."""
         self.coe_io = coe_io
         self.by_key: dict[str, AttrR[Any, Any]] = {}
         self.coe_attributes: list[AttrR[Any, Any]] = []
@@ -166,20 +173,44 @@ class TerminalController(Controller):
         if attr is None:
             return
         try:
-            await attr.update(from_device(attr, value))
+            await self.health.post(attr, from_device(attr, value))
             self.failed_points.pop(point.key, None)
         except Exception as error:  # one value must not stop the scan
             self.failed_points[point.key] = f"{type(error).__name__}: {error}"
 
     async def set_diagnostics(self, state: SlaveState | None, crc: int | None) -> None:
-        """Post the master's view of this slave (None: not reported this time)."""
+        """Post the master's view of this slave (None: not reported this time).
+
+        A slave out of OP or without link puts only its own points in alarm.
+        """
+        health = self.health
         if state is not None:
-            await post(self.diag["AlState"], al_state_view(state))
-            await post(self.diag["AlStateText"], al_state_text(state))
-            await post(self.diag["LinkState"], state.link)
-            await post(self.diag["LinkOk"], state.link == 0)
+            await health.post(self.diag["AlState"], al_state_view(state))
+            await health.post(self.diag["AlStateText"], al_state_text(state))
+            await health.post(self.diag["LinkState"], state.link)
+            await health.post(self.diag["LinkOk"], state.link == 0)
+            await self._judge(state)
         if crc is not None:
-            await post(self.diag["CrcErrors"], min(crc, 2**31 - 1))
+            await health.post(self.diag["CrcErrors"], min(crc, 2**31 - 1))
+
+    async def _judge(self, state: SlaveState) -> None:
+        problem = ""
+        if state.al_state != AlState.OP:
+            problem = f"{self.plan.slave.name} in {al_state_text(state)}"
+        elif state.link != 0:
+            problem = f"{self.plan.slave.name}: link lost (0x{state.link:02X})"
+        if problem == self.slave_problem:
+            return
+        self.slave_problem = problem
+        if problem:
+            self.health.mark_invalid(self.by_key.values(), SLAVE, Status.STATE, problem)
+        else:
+            await self.health.mark_ok(self.by_key.values(), SLAVE)
+
+    def target_attributes(self) -> list[AttrR[Any, Any]]:
+        """What goes invalid when the target is lost: points and diagnostics."""
+        diag = [attr for leaf, attr in self.diag.items() if leaf != "Type"]
+        return [*self.by_key.values(), *diag]
 
     async def refresh_coe(self) -> None:
         """Read every CoE attribute again (SDO uploads), on demand."""

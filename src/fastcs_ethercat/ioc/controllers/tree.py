@@ -41,6 +41,7 @@ from fastcs_ethercat.ioc.controllers.terminal import (
     TerminalController,
     coe_leaf,
 )
+from fastcs_ethercat.ioc.health import Health
 from fastcs_ethercat.ioc.naming import (
     RBV_SUFFIX,
     Node,
@@ -78,6 +79,21 @@ class Tree:
     masters: list[MasterController] = field(default_factory=list)
     sinks: dict[str, Any] = field(default_factory=dict)
     """Point key -> the controller whose `apply_change` posts it."""
+    health: Health = field(default_factory=Health)
+
+    def attribute(self, key: str) -> AttrR[Any, Any] | None:
+        """The attribute serving point `key`, if any."""
+        sink = self.sinks.get(key)
+        return None if sink is None else sink.by_key.get(key)
+
+    def target_attributes(self) -> list[AttrR[Any, Any]]:
+        """Every attribute whose value comes from the target (not the IOC)."""
+        found: list[AttrR[Any, Any]] = []
+        for master in self.masters:
+            found += master.target_attributes()
+            for terminal in master.terminals.values():
+                found += terminal.target_attributes()
+        return found
 
     def pvs(self) -> list[PvEntry]:
         """Every PV the tree serves (CA names), sorted by name."""
@@ -141,19 +157,20 @@ def build_tree(
     coe_access: CoeAccess | None = None,
     master_reader: MasterReaderFactory | None = None,
     read_only: bool = False,
+    health: Health | None = None,
 ) -> Tree:
     """The controller tree of `plan`, named under `prefix`."""
     names = plan_pv_names(prefix, pv_requests(plan), aliases)
     root_leaves = {leaf: names.leaves[PvRequest((), leaf)] for leaf in ROOT_LEAVES}
     root = RootController(prefix, plan, target, root_leaves)
-    tree = Tree(root, names)
+    tree = Tree(root, names, health=health or Health())
     point_io = PointIO(writer)
     for master in plan.masters:
         top = (Node(NodeKind.MASTER, master.name),)
         leaves = _leaves(names, top, [*MASTER_LEAVES, *_symbols(master.master_points)])
         reader = master_reader(master) if master_reader is not None else None
         controller = MasterController(
-            master, leaves, point_io, reader, read_only=read_only
+            master, leaves, point_io, reader, read_only=read_only, health=tree.health
         )
         root.add_sub_controller(names.controllers[top], controller)
         tree.masters.append(controller)
@@ -198,6 +215,7 @@ def _add_terminals(
             point_io,
             coe_io,
             read_only=read_only,
+            health=tree.health,
         )
         parent.add_sub_controller(tree.names.controllers[path], controller)
         by_path[path] = controller

@@ -1,0 +1,230 @@
+"""Connection supervision: watch the target's ADS state, reconnect with backoff.
+
+Every `period` the supervisor asks the target for its ADS state and symbol
+version (`probe`). What it finds goes to a `Link` (the app), which does the
+work:
+
+- no answer in `probe_timeout` (or an ADS error): `lost`, then `reconnect`
+  with growing pauses until it succeeds (the app closes and reopens its
+  clients, discovers again and resumes polling);
+- the runtime not in RUN: `stopped` once; back in RUN: `resync`;
+- another symbol version (online change): `resync`.
+
+A beamline IOC runs for months: nothing here ends except by cancellation.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import time
+from collections.abc import Awaitable, Callable
+from dataclasses import dataclass
+from enum import StrEnum
+from typing import Final, Protocol
+
+from fastcs_ethercat.ads.constants import AdsState
+
+logger = logging.getLogger(__name__)
+
+PROBE_PERIOD_S: Final = 0.25
+PROBE_TIMEOUT_S: Final = 0.5
+RECONNECT_TIMEOUT_S: Final = 30.0
+
+
+class LinkState(StrEnum):
+    """What the root's `ConnectionState` shows."""
+
+    CONNECTED = "CONNECTED"
+    DISCONNECTED = "DISCONNECTED"
+    STOPPED = "STOPPED"
+    RESYNCING = "RESYNCING"
+
+
+@dataclass(frozen=True)
+class Probe:
+    """One answer of the target: ADS state and symbol version."""
+
+    ads_state: int
+    symbol_version: int
+
+
+Prober = Callable[[], Awaitable[Probe]]
+
+
+class Link(Protocol):
+    """What the supervisor drives (implemented by the app)."""
+
+    async def lost(self, reason: str) -> None: ...
+    async def stopped(self, ads_state: int) -> None: ...
+    async def reconnect(self) -> int:
+        """Reopen, discover, resume; returns the symbol version now served."""
+        ...
+
+    async def resync(self, why: str) -> int:
+        """Re-resolve over open clients and resume; the symbol version."""
+        ...
+
+
+@dataclass
+class Backoff:
+    """Pauses between reconnect attempts: first, first*factor, ... up to most."""
+
+    first_s: float = 0.2
+    factor: float = 2.0
+    most_s: float = 2.0
+
+    def pauses(self) -> Callable[[], float]:
+        pause = [self.first_s]
+
+        def next_pause() -> float:
+            now = pause[0]
+            pause[0] = min(now * self.factor, self.most_s)
+            return now
+
+        return next_pause
+
+
+@dataclass
+class SupervisorStats:
+    """For the root's PVs and the tests."""
+
+    state: LinkState = LinkState.CONNECTED
+    probes: int = 0
+    losses: int = 0
+    reconnects: int = 0
+    resyncs: int = 0
+    last_error: str = ""
+    lost_at: float = 0.0
+    """time.monotonic() of the last loss."""
+    last_recovery_s: float = 0.0
+
+
+class Supervisor:
+    """Runs the probe loop against one target."""
+
+    def __init__(
+        self,
+        probe: Prober,
+        link: Link,
+        symbol_version: int,
+        *,
+        period_s: float = PROBE_PERIOD_S,
+        probe_timeout_s: float = PROBE_TIMEOUT_S,
+        backoff: Backoff | None = None,
+    ) -> None:
+        self.probe = probe
+        self.link = link
+        self.symbol_version = symbol_version
+        self.period_s = period_s
+        self.probe_timeout_s = probe_timeout_s
+        self.backoff = backoff or Backoff()
+        self.stats = SupervisorStats()
+        self._wake = asyncio.Event()
+
+    @property
+    def state(self) -> LinkState:
+        return self.stats.state
+
+    def poke(self) -> None:
+        """Probe now (a poll cycle failed as a whole)."""
+        self._wake.set()
+
+    async def run(self) -> None:
+        while True:
+            await self.step()
+            self._wake.clear()
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(self._wake.wait(), self.period_s)
+
+    async def step(self) -> None:
+        """One probe and whatever it calls for; never raises."""
+        try:
+            await self._step()
+        except asyncio.CancelledError:
+            raise
+        except Exception as error:  # keep supervising whatever happened
+            self.stats.last_error = f"{type(error).__name__}: {error}"
+            logger.exception("supervisor step failed")
+
+    async def _step(self) -> None:
+        self.stats.probes += 1
+        try:
+            answer = await asyncio.wait_for(self.probe(), self.probe_timeout_s)
+        except TimeoutError:
+            await self._lose(f"no answer from the target in {self.probe_timeout_s} s")
+            return
+        except Exception as error:
+            await self._lose(f"{type(error).__name__}: {error}")
+            return
+        if answer.ads_state != AdsState.RUN:
+            if self.stats.state is not LinkState.STOPPED:
+                self.stats.state = LinkState.STOPPED
+                self.stats.lost_at = time.monotonic()
+                self.stats.last_error = (
+                    f"runtime not in RUN (ADS state {answer.ads_state})"
+                )
+                logger.warning("target: %s", self.stats.last_error)
+                await self.link.stopped(answer.ads_state)
+            return
+        if self.stats.state is LinkState.STOPPED:
+            await self._resync("runtime back in RUN")
+        elif answer.symbol_version != self.symbol_version:
+            await self._resync(
+                f"symbol version {self.symbol_version} -> {answer.symbol_version}"
+            )
+
+    async def _resync(self, why: str) -> None:
+        logger.warning("target: %s: resolving every symbol again", why)
+        self.stats.state = LinkState.RESYNCING
+        try:
+            self.symbol_version = await self.link.resync(why)
+        except Exception as error:
+            await self._lose(f"resync failed: {type(error).__name__}: {error}")
+            return
+        self.stats.resyncs += 1
+        self._connected()
+
+    async def _lose(self, reason: str) -> None:
+        stats = self.stats
+        stats.state = LinkState.DISCONNECTED
+        stats.losses += 1
+        stats.lost_at = time.monotonic()
+        stats.last_error = reason
+        logger.error("target lost: %s", reason)
+        await self.link.lost(reason)
+        await self._reconnect()
+
+    async def _reconnect(self) -> None:
+        next_pause = self.backoff.pauses()
+        while True:
+            await asyncio.sleep(next_pause())
+            try:
+                self.symbol_version = await asyncio.wait_for(
+                    self.link.reconnect(), RECONNECT_TIMEOUT_S
+                )
+            except asyncio.CancelledError:
+                raise
+            except Exception as error:
+                text = (
+                    f"{type(error).__name__}: {error}"
+                    if str(error)
+                    else type(error).__name__
+                )
+                self.stats.last_error = f"reconnect failed: {text}"
+                logger.info("target: %s", self.stats.last_error)
+                continue
+            self.stats.reconnects += 1
+            self._connected()
+            return
+
+    def _connected(self) -> None:
+        stats = self.stats
+        if stats.lost_at:
+            stats.last_recovery_s = time.monotonic() - stats.lost_at
+        stats.state = LinkState.CONNECTED
+        logger.warning(
+            "target back: polling again (%.1f s after the loss)",
+            stats.last_recovery_s,
+        )

@@ -1,0 +1,118 @@
+"""`fastcs-ethercat bench` end to end at the smallest sizes: every section
+runs against a real simulator and IOC, and the JSON has the agreed shape.
+No timing is asserted (figures are printed by the benchmark, not tested)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import pytest
+from typer.testing import CliRunner
+
+from fastcs_ethercat.bench.chains import (
+    SCAN_SYMBOLS_PER_TERMINAL,
+    demo_mix,
+    mixed_slaves,
+    scan_slaves,
+    terminals_with_coe,
+)
+from fastcs_ethercat.bench.context import BenchContext, BenchPlan
+from fastcs_ethercat.bench.esi_sections import default_extra_esi
+from fastcs_ethercat.bench.report import (
+    REQUIRED_KEYS,
+    summary_lines,
+    write_json,
+)
+from fastcs_ethercat.bench.runner import run_bench
+from fastcs_ethercat.cli import _typer_app
+from tests.conftest import REPO_ROOT, SHARED_ESI, TERMINALS_DIR
+
+DEMO_CHAIN = REPO_ROOT / "ioc" / "demo-chain.yaml"
+TINY = BenchPlan(
+    chain_sizes=(3,),
+    scan_symbols=(SCAN_SYMBOLS_PER_TERMINAL,),
+    latency_rates_hz=(20.0,),
+    runs=1,
+    window_s=0.3,
+    latency_samples=3,
+    start_timeout_s=60.0,
+    coe_chain_sizes=(),
+)
+
+
+def bench_context(scratch: Path) -> BenchContext:
+    """The repository's inputs at the tiny sizes."""
+    return BenchContext(
+        terminals=TERMINALS_DIR,
+        esi=SHARED_ESI,
+        demo_chain=DEMO_CHAIN,
+        scratch=scratch,
+        plan=TINY,
+        extra_esi=default_extra_esi(REPO_ROOT),
+    )
+
+
+@pytest.fixture(scope="module")
+def document() -> dict[str, Any]:
+    """One tiny run of the start and latency sections (scan: test_bench_scan)."""
+    lines: list[str] = []
+    return run_bench(bench_context, ("start", "latency"), progress=lines.append)
+
+
+def is_number(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
+def test_the_document_has_every_key(document: dict[str, Any]) -> None:
+    assert set(REQUIRED_KEYS) <= document.keys()
+    assert document["machine"]["cores"] >= 1
+    assert document["machine"]["cpu_model"]
+    assert document["esi_catalog_s"] == {"skipped": "section not selected"}
+    assert document["scan"] == []
+    json.dumps(document)  # JSON-ready as it is
+
+
+def test_start_gives_seconds_and_memory_per_chain_size(
+    document: dict[str, Any],
+) -> None:
+    assert is_number(document["ioc_start_s"]["3"]), document["ioc_start_s"]
+    assert is_number(document["rss_mb"]["3"]), document["rss_mb"]
+    detail = document["ioc_start_detail"][0]
+    assert detail["terminals"] == 3 and detail["pvs"] > 0
+    assert detail["ready_line_s"] <= detail["start_s"]
+
+
+def test_latency_has_median_and_p99(document: dict[str, Any]) -> None:
+    figures = document["latency_ms"]["20"]
+    assert "error" not in figures, figures
+    assert 0 < figures["p50"] <= figures["p99"]
+    assert figures["samples"] == TINY.latency_samples
+
+
+def test_the_summary_and_json_file(document: dict[str, Any], tmp_path: Path) -> None:
+    lines = summary_lines(document)
+    assert any(line.startswith("latency @20 Hz") for line in lines)
+    path = tmp_path / "bench.json"
+    write_json(document, path)
+    assert json.loads(path.read_text()) == document
+
+
+def test_chains_of_any_size_and_coe_selection(tmp_path: Path) -> None:
+    mix = demo_mix(DEMO_CHAIN)
+    assert [s["type"] for s in mixed_slaves(30, mix)[24:26]] == ["EK1100", "EL1014"]
+    slaves = scan_slaves(1000, changing=True)
+    terminals = [s for s in slaves if s["type"] == "EL3104"]
+    assert len(terminals) * SCAN_SYMBOLS_PER_TERMINAL >= 1000
+    assert terminals[0]["signal"]["kind"] == "counter"
+    copy = terminals_with_coe(TERMINALS_DIR, tmp_path / "terminals")
+    text = (copy / "EL3104.yaml").read_text()
+    coe = text.split("\n  coe_objects:\n", 1)[1]
+    assert "    selected: true\n" in coe and "    selected: false\n" not in coe
+
+
+def test_the_cli_refuses_an_unknown_section() -> None:
+    result = CliRunner().invoke(_typer_app, ["bench", "--only", "everything"])
+    assert result.exit_code != 0
+    assert "unknown section everything" in str(result.exception or result.output)

@@ -1,0 +1,551 @@
+"""The IOC under every fault the simulator can inject: alarms and recovery.
+
+One simulator and one IOC subprocess serve the whole module; every test
+clears its faults and waits until the IOC serves every PV again. Alarm
+times come from p4p monitors (PVA carries severity with every update), so
+a figure is the time from the fault request to the first update with the
+expected severity. The figures are printed (run with `-s` to see them).
+"""
+
+from __future__ import annotations
+
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+from fastcs.attributes import AttrR
+from fastcs.datatypes import Int
+
+from fastcs_ethercat.ioc.alarms import Status
+from fastcs_ethercat.ioc.app import chain_changes
+from fastcs_ethercat.ioc.health import COMM, Health
+from fastcs_ethercat.ioc.plan import (
+    MasterPlan,
+    Point,
+    PointKind,
+    SlaveInfo,
+    SystemPlan,
+    TerminalPlan,
+)
+from fastcs_ethercat.ioc.poller import check_write
+from fastcs_ethercat.sim.process import SimProcess
+from tests.conftest import REPO_ROOT, TERMINALS_DIR
+from tests.ioc_support import (
+    START_TIMEOUT,
+    IocProcess,
+    caget,
+    ioc_env,
+    new_token,
+    start_ioc,
+    wait_for,
+)
+
+IOC_COMMAND = (sys.executable, "-m", "fastcs_ethercat", "ioc")
+DEMO_CHAIN = REPO_ROOT / "ioc" / "demo-chain.yaml"
+INVALID = 3
+SINE = "ETH1:RIO1:MOD5:AICompactCh1"  # Term 5 (EL3104): moves all the time
+STEADY = "ETH1:RIO21:MOD22:AIStdCh1Value"  # Term 22 (EL3104): set by tests
+STEADY_SYMBOL = "Term 22 (EL3104).AI Standard Channel 1.Value"
+OUTPUT = "Term 24 (EP4374-0002).AO Outputs Channel 3"
+LOSS_LIMIT_S = 1.5
+"""Loss to INVALID (1 s asked; some slack for a loaded 2-core CI machine)."""
+RECOVERY_LIMIT_S = 7.0
+"""Fault over to every PV valid again (5 s asked, plus the same slack)."""
+
+
+@dataclass
+class Watch:
+    """Every PVA update of some PVs: (monotonic time, severity, value)."""
+
+    updates: dict[str, list[tuple[float, int, Any]]] = field(default_factory=dict)
+    lock: threading.Lock = field(default_factory=threading.Lock)
+
+    def callback(self, name: str) -> Any:
+        def on_update(value: Any) -> None:
+            if isinstance(value, Exception):
+                return
+            with self.lock:
+                self.updates.setdefault(name, []).append(
+                    (time.monotonic(), int(value.severity), value.raw.value)
+                )
+
+        return on_update
+
+    def first(self, name: str, since: float, severity: int) -> float | None:
+        """Seconds from `since` to the first update with `severity`."""
+        with self.lock:
+            for stamp, sev, _ in self.updates.get(name, []):
+                if stamp >= since and sev == severity:
+                    return stamp - since
+        return None
+
+    def severity(self, name: str) -> int:
+        with self.lock:
+            return self.updates[name][-1][1]
+
+    def count_since(self, name: str, since: float) -> int:
+        with self.lock:
+            return sum(
+                1 for stamp, _, _ in self.updates.get(name, []) if stamp >= since
+            )
+
+
+@dataclass
+class Rig:
+    sim: SimProcess
+    ioc: IocProcess
+    watch: Watch
+    figures: dict[str, float]
+    replaced: list[SimProcess] = field(default_factory=list)
+    """Simulators started in place of the first one (stopped at the end)."""
+    work: Path | None = None
+
+    def pv(self, name: str) -> str:
+        return self.ioc.pv(name)
+
+    def root(self, name: str) -> str:
+        pv = self.pv(name)
+        return caget(self.ioc, "-S", pv).get(pv, "")
+
+    def wait_invalid(self, name: str, since: float, timeout: float = 10) -> float:
+        found = wait_for(
+            lambda: self.watch.first(self.pv(name), since, INVALID), timeout
+        )
+        assert found is not None, f"{name} never went INVALID"
+        return found
+
+    def wait_valid(self, name: str, since: float, timeout: float = 15) -> float:
+        """Seconds from `since` until `name` is valid and updating again."""
+
+        pv = self.pv(name)
+
+        def valid() -> float | None:
+            lost = self.watch.first(pv, since, INVALID)
+            start = since + (lost or 0.0)  # valid again after the alarm, if any
+            back = self.watch.first(pv, start, 0)
+            if back is None or self.watch.severity(pv) != 0:
+                return None
+            return back + start - since
+
+        found = wait_for(valid, timeout)
+        assert found is not None, f"{name} never came back"
+        return found
+
+    def all_back(self, timeout: float = 20) -> bool:
+        return bool(
+            wait_for(
+                lambda: (
+                    self.root("ConnectionState") == "CONNECTED"
+                    and self.root("InvalidPvs") == "0"
+                ),
+                timeout,
+            )
+        )
+
+
+def _config(work: Path, sim: SimProcess, prefix: str) -> Path:
+    config = work / "ioc.yaml"
+    config.write_text(
+        yaml.safe_dump(
+            {
+                "prefix": prefix,
+                "target": sim.pyads_ip,
+                "ams_net_id": sim.net_id,
+                "poll_rate_hz": 20,
+                "terminal_dirs": [str(TERMINALS_DIR)],
+            }
+        )
+    )
+    return config
+
+
+@pytest.fixture(scope="module")
+def rig(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Rig]:
+    token = new_token()
+    env = ioc_env(token)
+    prefix = f"FLT{token[:6].upper()}"
+    work = tmp_path_factory.mktemp("faults")
+    with SimProcess(chain=DEMO_CHAIN, terminals=TERMINALS_DIR, env=env) as sim:
+        config = _config(work, sim, prefix)
+        ioc = start_ioc([*IOC_COMMAND, "--config", str(config)], prefix, env, token)
+        try:
+            ioc.wait_for_line("ioc ready", START_TIMEOUT)
+            watch = Watch()
+            with ioc.p4p_context() as context:
+                names = [ioc.pv(SINE), ioc.pv(STEADY)]
+                subscriptions = [
+                    context.monitor(name, watch.callback(name)) for name in names
+                ]
+                rig = Rig(sim, ioc, watch, {}, work=work)
+                assert wait_for(lambda: rig.root("Connected") == "True", 30)
+                try:
+                    yield rig
+                finally:
+                    for subscription in subscriptions:
+                        subscription.close()
+                    for replaced in rig.replaced:
+                        replaced.__exit__(None, None, None)
+            print(
+                "\nfault figures (s): "
+                + ", ".join(f"{k}={v:.2f}" for k, v in rig.figures.items())
+            )
+        finally:
+            ioc.stop()
+
+
+@pytest.fixture(autouse=True)
+def clean(request: pytest.FixtureRequest) -> Iterator[None]:
+    """After a test with the rig: no fault left, every PV served again."""
+    yield
+    if "rig" not in request.fixturenames:
+        return
+    rig: Rig = request.getfixturevalue("rig")
+    rig.sim.clear_faults()
+    assert rig.all_back(), (rig.root("ConnectionState"), rig.root("InvalidPvs"))
+
+
+def _outage(rig: Rig, name: str, kind: str, hold: float, **params: Any) -> None:
+    """Inject `kind`, expect every PV INVALID, clear after `hold`, expect all back."""
+    pid = rig.ioc.process.pid
+    start = time.monotonic()
+    rig.sim.add_fault(kind, **params)
+    loss = rig.wait_invalid(SINE, start)
+    steady_loss = rig.wait_invalid(STEADY, start)
+    state = rig.root("ConnectionState")
+    time.sleep(max(0.0, hold - (time.monotonic() - start)))
+    cleared = time.monotonic()
+    rig.sim.clear_faults()
+    back = rig.wait_valid(SINE, cleared)
+    rig.figures[f"{name}_loss"] = max(loss, steady_loss)
+    rig.figures[f"{name}_recovery"] = back
+
+    assert max(loss, steady_loss) < LOSS_LIMIT_S
+    assert state in ("DISCONNECTED", "STOPPED", "RESYNCING")
+    assert back < RECOVERY_LIMIT_S
+    assert rig.ioc.process.poll() is None and rig.ioc.process.pid == pid
+
+
+def test_dropped_connections_reconnect(rig: Rig) -> None:
+    _outage(rig, "drop", "drop", 0.0)
+    counted = wait_for(lambda: int(rig.root("Reconnects")) >= 1, 5)
+
+    assert counted
+    assert 0 < float(rig.root("LastRecovery")) < RECOVERY_LIMIT_S
+
+
+def test_refused_connections_back_after_refusal(rig: Rig) -> None:
+    start = time.monotonic()
+    rig.sim.add_fault("refuse", seconds=3)
+    loss = rig.wait_invalid(SINE, start)
+    disconnected = rig.root("ConnectionState")
+    error = rig.root("LastError")
+    back = rig.wait_valid(SINE, start + 3)
+    rig.figures["refuse3_loss"] = loss
+    rig.figures["refuse3_recovery_after_refusal"] = back
+
+    assert loss < LOSS_LIMIT_S
+    assert disconnected == "DISCONNECTED"
+    assert error
+    assert back < RECOVERY_LIMIT_S
+
+
+def test_stalled_target(rig: Rig) -> None:
+    _outage(rig, "stall", "stall", 2.0)
+
+
+def test_runtime_stop(rig: Rig) -> None:
+    start = time.monotonic()
+    rig.sim.add_fault("stop")
+    loss = rig.wait_invalid(STEADY, start)
+    stopped = wait_for(lambda: rig.root("ConnectionState") == "STOPPED", 5)
+    cleared = time.monotonic()
+    rig.sim.clear_faults()
+    back = rig.wait_valid(SINE, cleared)
+    rig.figures["stop_loss"] = loss
+    rig.figures["stop_recovery"] = back
+
+    assert loss < LOSS_LIMIT_S
+    assert stopped
+    assert back < RECOVERY_LIMIT_S
+
+
+def test_sum_read_error_alarms_and_recovers(rig: Rig) -> None:
+    start = time.monotonic()
+    rig.sim.add_fault("error", code=1793, group=0xF080)
+    loss = rig.wait_invalid(SINE, start)
+    cleared = time.monotonic()
+    rig.sim.clear_faults()
+    back = rig.wait_valid(SINE, cleared)
+    rig.figures["sum_error_alarm"] = loss
+    rig.figures["sum_error_recovery"] = back
+
+    assert loss < LOSS_LIMIT_S
+    assert back < RECOVERY_LIMIT_S
+
+
+def test_slave_in_preop_alarms_only_its_points(rig: Rig) -> None:
+    start = time.monotonic()
+    rig.sim.add_fault("slave_state", state="PREOP", name="Term 5 (EL3104)")
+    loss = rig.wait_invalid(SINE, start, timeout=5)
+    rig.sim.set_symbol(STEADY_SYMBOL, 4242)
+    steady = rig.pv(STEADY)
+    follows = wait_for(lambda: caget(rig.ioc, steady).get(steady) == "4242", 10)
+    steady_severity = rig.watch.severity(steady)
+    state = caget(rig.ioc, "-S", rig.pv("ETH1:RIO1:MOD5:AlState"))
+    cleared = time.monotonic()
+    rig.sim.clear_faults()
+    back = rig.wait_valid(SINE, cleared)
+    rig.figures["preop_alarm"] = loss
+    rig.figures["preop_recovery"] = back
+
+    assert loss < 2.5  # master diagnostics are read once a second
+    assert follows and steady_severity == 0
+    assert state[rig.pv("ETH1:RIO1:MOD5:AlState")] == "PREOP"
+    assert back < 3.0
+
+
+def test_lost_link_alarms_only_that_slave(rig: Rig) -> None:
+    start = time.monotonic()
+    rig.sim.add_fault("link_lost", name="Term 22 (EL3104)")
+    loss = rig.wait_invalid(STEADY, start, timeout=5)
+    sine_updates = rig.watch.count_since(rig.pv(SINE), time.monotonic())
+    time.sleep(1.0)
+    sine_moving = rig.watch.count_since(rig.pv(SINE), time.monotonic() - 1.0)
+    sine_severity = rig.watch.severity(rig.pv(SINE))
+    rig.figures["link_lost_alarm"] = loss
+
+    assert loss < 2.5
+    assert sine_updates >= 0 and sine_moving > 0
+    assert sine_severity == 0
+
+
+def test_online_change_resolves_again_without_restart(rig: Rig) -> None:
+    pid = rig.ioc.process.pid
+    version = int(rig.root("SymbolVersion"))
+    start = time.monotonic()
+    rig.sim.add_fault("online_change")
+    bumped = wait_for(lambda: int(rig.root("SymbolVersion")) != version, 10)
+    resolved = time.monotonic() - start
+    rig.sim.set_symbol(STEADY_SYMBOL, -1717)
+    steady = rig.pv(STEADY)
+    follows = wait_for(lambda: caget(rig.ioc, steady).get(steady) == "-1717", 10)
+    rig.figures["online_change_resolved"] = resolved
+
+    assert bumped and follows
+    assert rig.ioc.process.pid == pid and rig.ioc.process.poll() is None
+
+
+def test_writes_are_checked_rejected_while_away_and_alarm_on_error(
+    rig: Rig,
+) -> None:
+    ioc = rig.ioc
+    pv = rig.pv("ETH1:RIO21:MOD24:AOOutputsCh3")
+    ioc.tool("caput", pv, "321")
+    assert wait_for(lambda: rig.sim.get_symbol(OUTPUT) == 321, 10)
+
+    rig.sim.add_fault("refuse", seconds=3)
+    assert wait_for(lambda: rig.root("ConnectionState") != "CONNECTED", 5)
+    ioc.tool("caput", pv, "654")
+    assert rig.all_back()
+    time.sleep(1.0)
+    kept = rig.sim.get_symbol(OUTPUT)
+
+    # outputs are in group 0xF020 on the device port (sim/layout.py)
+    rig.sim.add_fault("error", code=1793, group=0xF020)
+    ioc.tool("caput", pv, "987")
+    alarm = ioc.tool("caget", "-a", pv)
+    rig.sim.clear_faults()
+    readback = caget(ioc, pv + "_RBV")[pv + "_RBV"]
+
+    assert kept == 321  # not queued, not replayed after the reconnect
+    assert "WRITE" in alarm and "INVALID" in alarm, alarm
+    assert rig.sim.get_symbol(OUTPUT) == 321
+    assert readback == "321"
+
+
+def test_online_change_of_pdo_groups_alarms_only_what_went(rig: Rig) -> None:
+    start = time.monotonic()
+    rig.sim.add_fault("online_change", pdo_groups={"Term 5 (EL3104)": "Standard"})
+    try:
+        gone = rig.wait_invalid(SINE, start)
+        changes = wait_for(lambda: rig.root("ChainChanges"), 5)
+        rig.sim.set_symbol(STEADY_SYMBOL, 2468)
+        steady = rig.pv(STEADY)
+        follows = wait_for(lambda: caget(rig.ioc, steady).get(steady) == "2468", 10)
+        steady_severity = rig.watch.severity(steady)
+    finally:
+        again = time.monotonic()
+        rig.sim.add_fault("online_change", pdo_groups={"Term 5 (EL3104)": "Compact"})
+    back = rig.wait_valid(SINE, again)
+    cleared = wait_for(lambda: rig.root("ChainChanges") == "", 5)
+    rig.figures["pdo_change_alarm"] = gone
+    rig.figures["pdo_change_back"] = back
+
+    assert gone < 2.0
+    assert "served points gone" in changes
+    assert follows and steady_severity == 0
+    assert back < RECOVERY_LIMIT_S
+    assert cleared
+
+
+# -- the parts, without a target ----------------------------------------------
+
+
+def _point(type_name: str, kind: PointKind = PointKind.SCALAR, **extra: Any) -> Point:
+    return Point(
+        key=f"m/s/{type_name}",
+        symbol=f"Term 9 (X).{type_name}",
+        attribute=type_name.lower(),
+        type_name=type_name,
+        kind=kind,
+        index_group=0xF020,
+        index_offset=0,
+        byte_size=2,
+        writable=True,
+        **extra,
+    )
+
+
+@pytest.mark.parametrize(
+    ("point", "value"),
+    [
+        (_point("INT"), 32768),
+        (_point("INT"), -32769),
+        (_point("UINT"), -1),
+        (_point("USINT"), 256),
+        (_point("DINT"), 1.5),
+        (_point("UDINT"), "7"),
+        (_point("REAL"), float("nan")),
+        (_point("REAL"), 1e39),
+        (_point("BOOL"), 2),
+        (_point("BITS", PointKind.BITS, bit_size=2), 4),
+        (_point("INT", PointKind.ARRAY, length=3), [1, 2]),
+        (_point("INT", PointKind.ARRAY, length=2), [1, 40000]),
+    ],
+)
+def test_writes_out_of_type_or_range_never_reach_ads(point: Point, value: Any) -> None:
+    with pytest.raises(ValueError):
+        check_write(point, value)
+
+
+@pytest.mark.parametrize(
+    ("point", "value"),
+    [
+        (_point("INT"), -32768),
+        (_point("UDINT"), 2**32 - 1),
+        (_point("LREAL"), 1e300),
+        (_point("BOOL"), True),
+        (_point("BITS", PointKind.BITS, bit_size=2), 3),
+        (_point("INT", PointKind.ARRAY, length=2), [1, -2]),
+    ],
+)
+def test_writes_within_type_and_range_pass(point: Point, value: Any) -> None:
+    check_write(point, value)
+
+
+def _plan(*slaves: tuple[int, str, int]) -> SystemPlan:
+    master = MasterPlan(1, "Device 1 (EtherCAT)", "5.1.2.3.2.1", 27905)
+    master.terminals = [
+        TerminalPlan(SlaveInfo(address, name, 2, product, 0x100000), name)
+        for address, name, product in slaves
+    ]
+    return SystemPlan("5.1.2.3.1.1", "sim", "3.1", 1, [master])
+
+
+def test_chain_changes_name_what_went_came_and_changed() -> None:
+    before = _plan((1001, "Term 1 (EK1100)", 1), (1002, "Term 2 (EL3104)", 2))
+    after = _plan((1001, "Term 1 (EK1100)", 1), (1002, "Term 2 (EL3102)", 3))
+    after.masters[0].terminals.append(
+        TerminalPlan(SlaveInfo(1003, "Term 3 (EL2024)", 2, 4, 0x100000), None)
+    )
+
+    changes = chain_changes(before, after)
+
+    assert chain_changes(before, before) == []
+    assert len(changes) == 2
+    assert "1002" in changes[0] and "EL3104" in changes[0] and "EL3102" in changes[0]
+    assert "1003 new" in changes[1]
+
+
+async def test_health_holds_values_until_every_reason_is_gone() -> None:
+    health = Health()
+    attr = AttrR(Int())
+    other = AttrR(Int())
+    health.mark_invalid([attr, other], COMM, Status.COMM, "gone")
+    health.mark_invalid([attr], "slave", Status.STATE, "PREOP")
+    await health.post(attr, 5)  # fresh: COMM goes, the slave reason stays
+    await health.post(other, 6)
+    held = attr.get()
+    reasons = health.reasons(attr)
+    await health.mark_ok([attr], "slave")
+
+    assert held == 0 and reasons == ["slave"]
+    assert attr.get() == 5 and other.get() == 6
+    assert not health.is_invalid(attr) and health.invalid_count == 0
+
+
+def _restart_sim(rig: Rig, chain: Path) -> float:
+    """Stop the simulator and start one of `chain` on the same ports."""
+    old = rig.sim
+    stopped = time.monotonic()  # the IOC may notice while the old one stops
+    old.stop()
+    new = SimProcess(
+        chain=chain,
+        terminals=TERMINALS_DIR,
+        port=old.tcp_port,
+        udp_port=old.udp_port,
+        env=rig.ioc.env,
+    )
+    rig.replaced.append(new)
+    new.start()
+    rig.sim = new
+    return stopped
+
+
+def test_target_restarted_with_another_chain_keeps_unchanged_terminals(
+    rig: Rig,
+) -> None:
+    assert rig.work is not None
+    changed = rig.work / "changed-chain.yaml"
+    text = DEMO_CHAIN.read_text(encoding="utf-8")
+    assert "  - type: EL2024                       # Term 20" in text
+    changed.write_text(
+        text.replace(
+            "  - type: EL2024                       # Term 20",
+            "  - type: EL1014                       # Term 20",
+        ),
+        encoding="utf-8",
+    )
+    term20 = "ETH1:RIO18:MOD20:AlState"
+    pid = rig.ioc.process.pid
+
+    stopped = _restart_sim(rig, changed)
+    try:
+        loss = rig.wait_invalid(SINE, stopped)
+        back = rig.wait_valid(SINE, stopped)
+        changes = wait_for(lambda: rig.root("ChainChanges"), 5)
+        invalid = int(rig.root("InvalidPvs"))
+        rig.sim.set_symbol(STEADY_SYMBOL, 1357)
+        steady = rig.pv(STEADY)
+        follows = wait_for(lambda: caget(rig.ioc, steady).get(steady) == "1357", 10)
+        rig.figures["restart_other_chain_back"] = back
+    finally:
+        restored = _restart_sim(rig, DEMO_CHAIN)
+    again = rig.wait_valid(SINE, restored)
+    cleared = wait_for(lambda: rig.root("ChainChanges") == "", 10)
+    rig.figures["restart_same_chain_back"] = again
+
+    assert loss < LOSS_LIMIT_S
+    assert back < RECOVERY_LIMIT_S and again < RECOVERY_LIMIT_S
+    assert "1020" in changes and "EL2024" in changes and "EL1014" in changes
+    assert invalid > 0  # Term 20's points: gone, in alarm, PVs kept
+    assert rig.pv(term20) in caget(rig.ioc, rig.pv(term20))
+    assert follows
+    assert cleared
+    assert rig.ioc.process.pid == pid and rig.ioc.process.poll() is None
