@@ -519,15 +519,17 @@ def serve(
 def list_pvs(config: IocConfig) -> tuple[list[PvEntry], list[str]]:
     """Connect, discover and return every PV and every warning; serve nothing."""
 
-    async def go() -> Ioc:
+    async def go() -> tuple[list[PvEntry], list[str]]:
+        # Return plain lists, not the Ioc: asyncio.run formats its main task's
+        # result on the way out, and the repr of a large Ioc takes minutes.
         plan, pool = await discover_system(config)
         try:
-            return build_ioc(config, plan, pool)
+            ioc = build_ioc(config, plan, pool)
+            return ioc.tree.pvs(), ioc.warnings()
         finally:
             await pool.close()
 
-    ioc = asyncio.run(go())
-    return ioc.tree.pvs(), ioc.warnings()
+    return asyncio.run(go())
 
 
 def _master_reader(
