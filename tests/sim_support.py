@@ -14,7 +14,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import struct
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Final
 
@@ -187,6 +187,9 @@ class StandInTarget:
     def force_error(self, code: int, group: int | None = None) -> None:
         self.forced_error = (code, group)
         self.calls.append(("force_error", (code, group)))
+
+    def fail_symbols(self, code: int, symbols: Sequence[str]) -> None:
+        self.calls.append(("fail_symbols", (code, tuple(symbols))))
 
     def clear_faults(self) -> None:
         self.forced_error = None

@@ -6,6 +6,7 @@ import pyads.constants as pc
 import pytest
 from pyads.errorcodes import ERROR_CODES
 
+from fastcs_ethercat.ads.client import unreachable
 from fastcs_ethercat.ads.constants import (
     ADS_TCP_PORT,
     ADS_UDP_PORT,
@@ -134,6 +135,13 @@ def test_facts_file_return_codes() -> None:
         assert AdsReturnCode(code).name == name
     assert describe_return_code(0x702) == "DEVICE_INVALID_GROUP (0x702)"
     assert describe_return_code(0x9999) == "0x9999"
+    assert describe_return_code(-1) == "client error -1"
+
+
+def test_unreachable_codes_are_told_from_answered_errors() -> None:
+    """No answer (timeouts, routing, ports, pyads' own) vs an error answered."""
+    assert all(unreachable(code) for code in (0x745, 0x719, 0x6, 0x7, -1))
+    assert not any(unreachable(code) for code in (0x701, 0x705, 0x710, 0x711))
 
 
 def test_coe_index_offset() -> None:

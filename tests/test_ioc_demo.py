@@ -340,3 +340,77 @@ def test_faults_show_and_polling_recovers(demo: Demo) -> None:
 def _number(demo: Demo, name: str) -> float:
     pv = demo.ioc.pv(name)
     return float(caget(demo.ioc, pv).get(pv, "nan"))
+
+
+_MONITOR_STAMPS = """
+import asyncio, sys, aioca
+async def main(seconds, names):
+    events = []
+    def seen(value, index):
+        events.append((names[index], value.raw_stamp))
+    subs = aioca.camonitor(names, seen, format=aioca.FORMAT_TIME, all_updates=True)
+    await asyncio.sleep(seconds)
+    for sub in subs:
+        sub.close()
+    for name, (seconds_, nanoseconds) in events:
+        print(name, seconds_, nanoseconds)
+asyncio.run(main(float(sys.argv[1]), sys.argv[2:]))
+"""
+
+
+def _ca_stamps(demo: Demo, names: list[str], seconds: float) -> list[tuple[str, int]]:
+    """(PV, timestamp in ns) of every CA monitor event over `seconds`."""
+    done = subprocess.run(
+        [sys.executable, "-c", _MONITOR_STAMPS, str(seconds), *names],
+        env=demo.ioc.env,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    events = []
+    for line in done.stdout.splitlines():
+        name, seconds_, nanoseconds = line.split()
+        events.append((name, int(seconds_) * 10**9 + int(nanoseconds)))
+    return events
+
+
+def test_values_of_one_poll_cycle_carry_one_timestamp(demo: Demo) -> None:
+    """Every value a poll cycle changes has that cycle's time, on CA and PVA."""
+    names = [
+        entry.name
+        for entry in demo.pvs.values()
+        if entry.access == "r"
+        and entry.datatype in ("Int", "ExactFloat", "IntegralFloat")
+        and "(" in entry.source  # a TwinCAT symbol of a terminal
+    ][:80]
+    seconds, rate = 2.0, 20
+    pva_stamps: dict[str, set[int]] = {}
+    with demo.ioc.p4p_context() as context:
+
+        def on_value(name: str, value: Any) -> None:
+            stamp = value.raw.timeStamp
+            pva_stamps.setdefault(name, set()).add(
+                stamp.secondsPastEpoch * 10**9 + stamp.nanoseconds
+            )
+
+        subscriptions = [
+            context.monitor(name, lambda v, n=name: on_value(n, v)) for name in names
+        ]
+        try:
+            events = _ca_stamps(demo, names, seconds)
+        finally:
+            for subscription in subscriptions:
+                subscription.close()
+
+    by_pv: dict[str, set[int]] = {}
+    for name, stamp in events:
+        by_pv.setdefault(name, set()).add(stamp)
+    changing = {name: s for name, s in by_pv.items() if len(s) >= 10}
+    cycles = set().union(*changing.values())
+    shared = [pva_stamps.get(name, set()) & stamps for name, stamps in changing.items()]
+
+    assert len(changing) >= 3, sorted(by_pv)
+    # Per-value stamps would give one time per event; one per cycle gives at
+    # most one per cycle, whatever the number of PVs.
+    assert len(cycles) <= seconds * rate + 5 < sum(map(len, changing.values())) / 2
+    assert all(len(stamps) >= 5 for stamps in shared)  # PVA has the same times

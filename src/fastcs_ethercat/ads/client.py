@@ -119,6 +119,16 @@ class AdsRouteError(AdsError):
     """The target refused to add our route (wrong user or password)."""
 
 
+def unreachable(code: int) -> bool:
+    """The code says the target did not answer (timeout, routing, router or
+    port), rather than that it answered with an error."""
+    if code in _TIMEOUTS:
+        return True
+    if code in _SYMBOL_ERRORS:
+        return False
+    return code < 0x700 or code in _NOT_CONNECTED or code in _ROUTER_ERRORS
+
+
 def ads_error(code: int, operation: str, target: str, detail: str = "") -> AdsError:
     """The typed exception for an ADS return code."""
     kind: type[AdsError] = AdsError

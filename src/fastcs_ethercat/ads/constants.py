@@ -364,6 +364,8 @@ class AdsReturnCode(IntEnum):
 
 def describe_return_code(code: int) -> str:
     """A readable name for any return code, known or not."""
+    if code < 0:  # pyads' own failures carry no ADS code
+        return f"client error {code}"
     try:
         return f"{AdsReturnCode(code).name} (0x{code:X})"
     except ValueError:

@@ -68,6 +68,9 @@ def ioc_command(
     ] = False,
 ) -> None:
     """Serve every terminal of a TwinCAT target as EPICS PVs (CA and PVA)."""
+    from fastcs_ethercat.ioc.lean_imports import import_ioc_modules
+
+    import_ioc_modules()
     from fastcs_ethercat.ioc import app
     from fastcs_ethercat.ioc.config import load_ioc_config
 
@@ -98,6 +101,9 @@ def demo_command(
     prefix: Annotated[str, typer.Option("--prefix", help="PV prefix.")] = "DEMO",
 ) -> None:
     """Run the simulator with the demo chain and an IOC against it (loopback)."""
+    from fastcs_ethercat.ioc.lean_imports import import_ioc_modules
+
+    import_ioc_modules()
     from fastcs_ethercat.ioc import app
     from fastcs_ethercat.ioc.config import load_ioc_config
     from fastcs_ethercat.sim.process import SimProcess

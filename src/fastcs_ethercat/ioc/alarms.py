@@ -172,7 +172,9 @@ def publish_to(endpoints: Endpoints, state: AlarmState) -> int:
     """Publish `state` on the records and PVs in `endpoints`; how many."""
     reached = 0
     if endpoints.ca_in is not None:
-        endpoints.ca_in.set_alarm(int(state.severity), int(state.status))
+        endpoints.ca_in.set_alarm(  # the time too: the record may be on device time
+            int(state.severity), int(state.status), timestamp=time.time()
+        )
         reached += 1
     if endpoints.ca_out is not None:
         set_out_record_alarm(endpoints.ca_out, int(state.severity), int(state.status))

@@ -29,8 +29,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Final
 
-from fastcs_ethercat.ads.client import AdsError
-from fastcs_ethercat.ads.constants import AdsState, AmsPort
+from fastcs_ethercat.ads.client import AdsError, unreachable
+from fastcs_ethercat.ads.constants import AdsState, AmsPort, describe_return_code
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.ioc.alarms import Status
 from fastcs_ethercat.ioc.attributes import CoeReader, CoeWriter
@@ -59,8 +59,8 @@ from fastcs_ethercat.terminals.registry import TerminalRegistry
 
 logger = logging.getLogger(__name__)
 
-ADS_TIMEOUT_MS = 1000
-"""Every ADS request of the IOC: a lost target shows within a second."""
+COE_REFRESH_WAIT_S: Final = 10.0
+"""How long CoE values wait after a resync for the link to count as up."""
 CHAIN: Final = "chain"
 """Health reason: the point is gone from the target since a reconnect."""
 
@@ -120,8 +120,12 @@ class Ioc:
             if attr is not None:
                 by_code[code].append(attr)
         for code, attrs in by_code.items():
+            if unreachable(code):  # no answer: the target, not the point
+                reason, status = COMM, Status.COMM
+            else:
+                reason, status = READ, Status.READ
             self.tree.health.mark_invalid(
-                attrs, READ, Status.READ, f"ADS error 0x{code:X}"
+                attrs, reason, status, describe_return_code(code)
             )
         if self.supervisor is not None and len(errors) >= len(self.points):
             self.supervisor.poke()  # the whole read failed: is the target there?
@@ -144,13 +148,14 @@ class Ioc:
 
 
 async def discover_system(
-    config: IocConfig,
+    config: IocConfig, registry: TerminalRegistry | None = None
 ) -> tuple[SystemPlan, ClientPool]:
     """Prepare the target (NetId, route), connect and discover everything."""
 
-    registry = load_terminals(config.terminal_dirs)
+    if registry is None:
+        registry = load_terminals(config.terminal_dirs)
     net_id = await prepare_target(config)
-    pool = ClientPool(config.target_host, config.target_port, ADS_TIMEOUT_MS)
+    pool = ClientPool(config.target_host, config.target_port, config.ads_timeout_ms)
     try:
         plan = await discover(pool, registry, config, str(net_id))
     except AdsError as error:
@@ -293,21 +298,22 @@ async def _write(ioc: Ioc, point: Point, value: Any) -> None:
 async def start_polling(ioc: Ioc) -> None:
     """One poller task per group; its changes go straight to the attributes.
 
-    The poller hands on each cycle's changes synchronously; they are queued
-    and posted in order by one task per group, so a slow cycle of posting
-    never runs two batches at once.
+    The poller hands on each cycle's changes synchronously, with the time of
+    its read; they are queued and posted in order by one task per group, so
+    a slow cycle of posting never runs two batches at once, and every value
+    of one cycle is published with that cycle's one timestamp.
     """
-
+    ioc.tree.health.publisher.start()
     for group in ioc.groups:
         client = await ioc.pool.get(ioc.plan.net_id, group.master.symbol_port)
-        batches: asyncio.Queue[list[tuple[Point, Any]]] = asyncio.Queue()
+        batches: asyncio.Queue[Batch] = asyncio.Queue()
 
         def on_changes(
             changes: list[tuple[Point, object]],
-            _stamp: float,
-            queue: asyncio.Queue[list[tuple[Point, Any]]] = batches,
+            stamp: float,
+            queue: asyncio.Queue[Batch] = batches,
         ) -> None:
-            queue.put_nowait(changes)
+            queue.put_nowait((changes, stamp))
 
         group.poller = Poller(client, group.points, on_changes, ioc.note_errors)
         ioc.poll_tasks.append(asyncio.create_task(_post_batches(ioc, batches)))
@@ -325,16 +331,18 @@ async def stop_polling(ioc: Ioc) -> None:
     await asyncio.gather(*tasks, return_exceptions=True)
 
 
-async def _post_batches(
-    ioc: Ioc, batches: asyncio.Queue[list[tuple[Point, Any]]]
-) -> None:
+Batch = tuple[list[tuple[Point, Any]], float]
+"""One poll cycle's changes and the time of its read."""
+
+
+async def _post_batches(ioc: Ioc, batches: asyncio.Queue[Batch]) -> None:
     sinks = ioc.tree.sinks
     while True:
-        changes = await batches.get()
+        changes, stamp = await batches.get()
         for point, value in changes:
             sink = sinks.get(point.key)
             if sink is not None:
-                await sink.apply_change(point, value)
+                await sink.apply_change(point, value, stamp)
 
 
 class TargetLink:
@@ -342,6 +350,8 @@ class TargetLink:
 
     def __init__(self, ioc: Ioc) -> None:
         self.ioc = ioc
+        self.coe_refresh: asyncio.Task[None] | None = None
+        """Reading the CoE values again after a resync (one at a time)."""
 
     async def probe(self) -> Probe:
         """ADS state of the target's I/O server, symbol version of a master."""
@@ -363,6 +373,7 @@ class TargetLink:
 
     async def _invalidate(self, status: Status, reason: str) -> None:
         ioc = self.ioc
+        self._stop_coe_refresh()
         await stop_polling(ioc)
         ioc.tree.health.mark_invalid(ioc.tree.target_attributes(), COMM, status, reason)
         await ioc.tree.root.show_link(_state(ioc), reason)
@@ -410,7 +421,39 @@ class TargetLink:
         _follow_positions(ioc, plan)
         await start_polling(ioc)
         await ioc.tree.root.show_link(LinkState.CONNECTED, "")
+        self._start_coe_refresh()
         return plan.symbol_version
+
+    def _start_coe_refresh(self) -> None:
+        self._stop_coe_refresh()
+        task = asyncio.create_task(self._refresh_coe())
+        self.coe_refresh = task
+        self.ioc.tasks.append(task)  # cancelled by Ioc.stop
+        task.add_done_callback(self._forget_task)
+
+    def _forget_task(self, task: asyncio.Task[None]) -> None:
+        if task in self.ioc.tasks:
+            self.ioc.tasks.remove(task)
+
+    def _stop_coe_refresh(self) -> None:
+        if self.coe_refresh is not None:
+            self.coe_refresh.cancel()
+            self.coe_refresh = None
+
+    async def _refresh_coe(self) -> None:
+        """Read every CoE value from the slaves again: after an outage they
+        may hold others (a power cycle resets them), and until read they
+        stay INVALID. SDO access waits for the supervisor to say CONNECTED,
+        which it does once `resync` has returned."""
+        ioc = self.ioc
+        deadline = time.monotonic() + COE_REFRESH_WAIT_S
+        while not ioc.connected:
+            if time.monotonic() > deadline:
+                return
+            await asyncio.sleep(0.02)
+        for master in ioc.tree.masters:
+            for terminal in master.terminals.values():
+                await terminal.refresh_coe()
 
 
 def chain_changes(old: SystemPlan, new: SystemPlan) -> list[str]:
@@ -481,8 +524,9 @@ def serve(
     """Discover, build and serve until interrupted (this process's one IOC)."""
     loop = asyncio.new_event_loop()
     asyncio.set_event_loop(loop)
-    plan, pool = loop.run_until_complete(discover_system(config))
-    ioc = build_ioc(config, plan, pool)
+    registry = load_terminals(config.terminal_dirs)
+    plan, pool = loop.run_until_complete(discover_system(config, registry))
+    ioc = build_ioc(config, plan, pool, registry)  # kept for re-discoveries
     if on_built is not None:
         on_built(ioc)
     for warning in ioc.warnings():

@@ -135,10 +135,19 @@ class CoeIO(AttributeIO[Any, CoeRef]):
             await self.update(attr)
 
 
+READ_ONLY_MARK = "(read-only) "
+"""Starts the description (DESC) of an output the IOC serves read-only
+(`--read-only`), so a client sees why it cannot write it."""
+
+
+def _described(text: str, writable: bool, read_only: bool) -> str | None:
+    return description(READ_ONLY_MARK + text if writable and read_only else text)
+
+
 def attribute_for_point(point: Point, *, read_only: bool = False) -> Attribute:
     """An `AttrRW` for a writable point (unless read-only), else an `AttrR`."""
     datatype = point_datatype(point)
-    text = description(point.description or point.symbol)
+    text = _described(point.description or point.symbol, point.writable, read_only)
     if point.writable and not read_only:
         return AttrRW(datatype, io_ref=PointRef(point), description=text)
     return AttrR(datatype, io_ref=PointRef(point), description=text)
@@ -147,8 +156,10 @@ def attribute_for_point(point: Point, *, read_only: bool = False) -> Attribute:
 def attribute_for_coe(coe: CoePoint, *, read_only: bool = False) -> Attribute:
     """An attribute for a CoE sub-item, read at start and written as an SDO."""
     datatype = coe_datatype(coe)
-    text = description(
-        coe.description or f"CoE {coe.index:04X}:{coe.subindex:02X} {coe.attribute}"
+    text = _described(
+        coe.description or f"CoE {coe.index:04X}:{coe.subindex:02X} {coe.attribute}",
+        coe.writable,
+        read_only,
     )
     if coe.writable and not read_only:
         return AttrRW(datatype, io_ref=CoeRef(coe), description=text)

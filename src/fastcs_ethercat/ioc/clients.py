@@ -10,11 +10,14 @@ from __future__ import annotations
 import asyncio
 import ctypes
 from collections.abc import Awaitable, Callable
+from typing import Protocol, TypeVar
 
 import pyads
 
-from fastcs_ethercat.ads.client import AdsClient
-from fastcs_ethercat.ads.constants import ADS_TCP_PORT
+from fastcs_ethercat.ads.client import AdsClient, ads_error
+from fastcs_ethercat.ads.constants import ADS_TCP_PORT, AdsReturnCode
+
+_T = TypeVar("_T")
 
 ClientFactory = Callable[[str, int], Awaitable[AdsClient]]
 """`await factory(net_id, ams_port)` -> an open client the factory owns."""
@@ -129,3 +132,49 @@ async def read_text(
         return bytes(raw)
 
     return await client._call(f"read 0x{index_group:X}:0x{index_offset:X}", read)
+
+
+class BlockingReader(Protocol):
+    """One ADS read on the client's worker thread (inside `in_one_job`)."""
+
+    def __call__(
+        self, index_group: int, index_offset: int, size: int, *, exact: bool = True
+    ) -> bytes:
+        """`size` bytes (`exact`), or up to `size` zero-padded (names, strings);
+        raises `AdsError` as `AdsClient.read` would."""
+        ...
+
+
+async def in_one_job(
+    client: AdsClient, operation: str, work: Callable[[BlockingReader], _T]
+) -> _T:
+    """Run `work` on the client's worker thread with a blocking reader.
+
+    Discovery reads a few small values per slave, one round trip each; run
+    one by one from the event loop, every read also costs two thread hops.
+    Here a whole series costs two. Each read still raises its own `AdsError`
+    (`work` decides which ones it survives); anything else ends the job.
+    TODO(client owner): a batch call on `AdsClient` would replace this.
+    """
+    connection = client._connection
+
+    def read(
+        index_group: int, index_offset: int, size: int, *, exact: bool = True
+    ) -> bytes:
+        try:
+            raw = connection.read(
+                index_group,
+                index_offset,
+                ctypes.c_ubyte * size,
+                return_ctypes=True,
+                check_length=exact,
+            )
+        except pyads.ADSError as error:
+            code = getattr(error, "err_code", AdsReturnCode.CLIENT_ERROR)
+            where = f"read 0x{index_group:X}:0x{index_offset:X}"
+            raise ads_error(code, where, client.target) from error
+        if raw is None:
+            raise RuntimeError("the connection is not open")
+        return bytes(raw)
+
+    return await client._call(operation, lambda: work(read))

@@ -110,6 +110,9 @@ class IocConfig(_Strict):
     """AMS NetId of this host; pyads derives one from the local IP when unset."""
     route: RouteConfig | None = None
     poll_rate_hz: float = Field(default=DEFAULT_POLL_RATE_HZ, gt=0, le=MAX_POLL_RATE_HZ)
+    ads_timeout_ms: int = Field(default=1000, ge=50, le=60_000)
+    """Timeout of every ADS request of the IOC (a slow or distant PLC may need
+    more; a request that times out fails its poll cycle or write)."""
     terminals: dict[str, TerminalConfig] = Field(default_factory=dict)
     terminal_dirs: tuple[Path, ...] = (Path("terminals"),)
     pv_aliases: dict[str, str] = Field(default_factory=dict)

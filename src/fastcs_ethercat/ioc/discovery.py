@@ -36,7 +36,12 @@ from fastcs_ethercat.ads.ethercat import (
     decode_slave_states,
 )
 from fastcs_ethercat.errors import UserError
-from fastcs_ethercat.ioc.clients import ClientFactory, read_text
+from fastcs_ethercat.ioc.clients import (
+    BlockingReader,
+    ClientFactory,
+    in_one_job,
+    read_text,
+)
 from fastcs_ethercat.ioc.config import IocConfig
 from fastcs_ethercat.ioc.plan import MasterPlan, SlaveInfo, SystemPlan
 from fastcs_ethercat.ioc.resolve import resolve_master
@@ -48,6 +53,8 @@ SLAVE_INFO_INDEX = 0x8000
 """Master CoE: object 0x8000 + n describes slave n (sub 2 type, sub 3 name)."""
 SLAVE_TYPE_SUBINDEX = 2
 SLAVE_NAME_SUBINDEX = 3
+TEXT_SIZE = 255
+"""Longest name or type read (the answer is cut at its first NUL)."""
 COUPLER_GROUP_TYPES = frozenset({"SystemBk", "Coupler", "BusCoupler"})
 """ESI group types of bus couplers (EK1100's is SystemBk)."""
 
@@ -90,7 +97,12 @@ async def list_io_devices(io_server: AdsClient) -> list[IoDevice]:
 async def read_slaves(
     master: AdsClient, registry: TerminalRegistry | None = None
 ) -> list[SlaveInfo]:
-    """The master's slaves in bus order, with names and the coupler tree."""
+    """The master's slaves in bus order, with names and the coupler tree.
+
+    Count, addresses and states come in one read each; then three small reads
+    per slave (identity, TwinCAT name, type), run as one job on the client's
+    worker so a long chain costs round trips only, not thread hops as well.
+    """
     count = decode_slave_count(await master.read(EtherCatMasterGroup.SLAVE_COUNT, 0, 2))
     if count == 0:
         return []
@@ -100,13 +112,17 @@ async def read_slaves(
     states = decode_slave_states(
         await master.read(EtherCatMasterGroup.SLAVE_STATES, 0, 2 * count)
     )
+    described = await in_one_job(
+        master,
+        f"identities and names of {len(addresses)} slaves",
+        lambda read: [
+            _describe_slave(read, position, address)
+            for position, address in enumerate(addresses)
+        ],
+    )
     slaves: list[SlaveInfo] = []
     coupler: str | None = None
-    for position, address in enumerate(addresses):
-        identity = SlaveIdentity.decode(
-            await master.read(EtherCatMasterGroup.SLAVE_IDENTITY, address, 16)
-        )
-        name, type_name = await _slave_name_and_type(master, position, address)
+    for position, (address, identity, name, type_name) in enumerate(described):
         starts_segment = _is_coupler(type_name, identity, registry)
         if starts_segment:
             coupler = name
@@ -130,8 +146,19 @@ async def read_slaves(
     return slaves
 
 
-async def _slave_name_and_type(
-    master: AdsClient, position: int, address: int
+def _describe_slave(
+    read: BlockingReader, position: int, address: int
+) -> tuple[int, SlaveIdentity, str, str]:
+    """(address, identity, name, type) of one slave, on the client's worker."""
+    identity = SlaveIdentity.decode(
+        read(EtherCatMasterGroup.SLAVE_IDENTITY, address, 16)
+    )
+    name, type_name = _slave_name_and_type(read, position, address)
+    return address, identity, name, type_name
+
+
+def _slave_name_and_type(
+    read: BlockingReader, position: int, address: int
 ) -> tuple[str, str]:
     """TwinCAT's name and type of slave `position` from the master's CoE.
 
@@ -142,13 +169,19 @@ async def _slave_name_and_type(
     index = SLAVE_INFO_INDEX + position
     try:
         name = decode_device_name(
-            await read_text(
-                master, IndexGroup.COE_SDO, index << 16 | SLAVE_NAME_SUBINDEX
+            read(
+                IndexGroup.COE_SDO,
+                index << 16 | SLAVE_NAME_SUBINDEX,
+                TEXT_SIZE,
+                exact=False,
             )
         )
         type_name = decode_device_name(
-            await read_text(
-                master, IndexGroup.COE_SDO, index << 16 | SLAVE_TYPE_SUBINDEX
+            read(
+                IndexGroup.COE_SDO,
+                index << 16 | SLAVE_TYPE_SUBINDEX,
+                TEXT_SIZE,
+                exact=False,
             )
         )
     except AdsError as error:

@@ -25,6 +25,22 @@ FastCS writes to the device; `set_out_record_alarm` therefore does what
 processing would through EPICS's own database calls, using softioc's record
 field view (`device._record`, a `softioc.fields._Record`).
 
+Publishing a polled value (`store_value`, `init_setpoint`, `read_route`)
+sets what `AttrR.update()` would set (`_value`, the `_on_update_events`,
+an `AttrRW`'s first setpoint sync) and leaves the posting to the caller, who
+gives every record and PV the poll cycle's one timestamp: `update()` lets
+each transport stamp its own time. CA in records on that path get TSE=-2
+(`use_device_time`), so EPICS keeps the time the device support set.
+
+softioc's `set()` queues an in record's processing with `scanIoRequest`
+through ctypes, which releases the GIL for the call: the EPICS callback
+thread that processes the record wakes, takes the GIL to run softioc's
+Python device support, and the caller waits for it back, for every record.
+`in_record_setter` stores the value as `set()` does and queues the same
+request without letting go of the GIL (a PyDLL binding; scanIoRequest only
+appends to a queue and never waits), so the callback threads process a whole
+poll cycle's records in one turn: a third of the CPU per published value.
+
 This module is the only place in the project that knows these internals.
 Nothing is patched. `check_fastcs_shape()` (run by the tests) fails loudly
 when a FastCS upgrade moves any of the FastCS parts; the softioc part is
@@ -41,7 +57,7 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import Any, Final
 
-from fastcs.attributes import Attribute, AttrR, AttrW
+from fastcs.attributes import Attribute, AttrR, AttrRW, AttrW
 
 WRITTEN_AGAINST_FASTCS: Final = "0.14.4"
 
@@ -116,12 +132,16 @@ def endpoints_of(attribute: Attribute[Any, Any]) -> Endpoints:
 
 def _find(callbacks: Iterable[Callable[..., Any]], closure: _Closure) -> Any:
     for callback in callbacks:
-        if (
-            getattr(callback, "__module__", None) == closure.module
-            and getattr(callback, "__qualname__", None) == closure.qualname
-        ):
+        if _is(callback, closure):
             return _cell(callback, closure.cell)
     return None
+
+
+def _is(callback: Callable[..., Any], closure: _Closure) -> bool:
+    return (
+        getattr(callback, "__module__", None) == closure.module
+        and getattr(callback, "__qualname__", None) == closure.qualname
+    )
 
 
 def _cell(function: Callable[..., Any], name: str) -> Any:
@@ -159,10 +179,19 @@ def check_fastcs_shape() -> None:
             problems.append(f"{closure.qualname} no longer closes over {closure.cell}")
     from fastcs.datatypes import Int
 
-    if not hasattr(AttrR(Int()), "_on_update_callbacks"):
-        problems.append("AttrR._on_update_callbacks is gone")
-    if not hasattr(AttrW(Int()), "_sync_setpoint_callbacks"):
-        problems.append("AttrW._sync_setpoint_callbacks is gone")
+    fields = {
+        AttrR: ("_on_update_callbacks", "_on_update_events", "_value"),
+        AttrW: ("_sync_setpoint_callbacks", "_call_sync_setpoint_callbacks"),
+        AttrRW: ("_setpoint_initialised",),
+    }
+    for kind, names in fields.items():
+        sample = kind(Int())
+        problems += [
+            f"{kind.__name__}.{name} is gone"
+            for name in names
+            if not hasattr(sample, name)
+        ]
+    problems += _softioc_problems()
     if problems:
         raise FastCSShapeError(
             f"FastCS changed shape (module written against {WRITTEN_AGAINST_FASTCS}): "
@@ -221,3 +250,95 @@ def _database_functions() -> _DatabaseFunctions:
     return _DatabaseFunctions(
         dbCore.dbScanLock, dbCore.dbScanUnlock, recGblResetAlarms, post_events
     )
+
+
+@dataclass(frozen=True)
+class ReadRoute:
+    """Where a new value of one attribute goes: its CA in record and PVA read
+    PV (None where a transport made none), and every other on-update callback
+    (another transport's, or anyone's), which gets the value as from update()."""
+
+    ca_in: Any
+    pva_read: Any
+    others: tuple[Callable[[Any], Any], ...]
+
+
+def read_route(attribute: AttrR[Any, Any]) -> ReadRoute:
+    """The route of `attribute`'s values, once the transports serve."""
+    callbacks = [cb for cb, _ in attribute._on_update_callbacks or ()]  # pyright: ignore[reportPrivateUsage]
+    others = tuple(
+        cb for cb in callbacks if not (_is(cb, CA_READ) or _is(cb, PVA_READ))
+    )
+    return ReadRoute(_find(callbacks, CA_READ), _find(callbacks, PVA_READ), others)
+
+
+def use_device_time(record: Any) -> None:
+    """Let `record` keep the TIME its device support sets (TSE=-2), so a
+    `set(..., timestamp=t)` shows t rather than the time of processing."""
+    fields = getattr(record, "_record", None)
+    if fields is not None:  # after iocInit: the live record
+        fields.TSE = -2
+    else:  # before: the database still being built
+        record.TSE = -2
+
+
+def store_value(attribute: AttrR[Any, Any], value: Any) -> None:
+    """Make `value` the attribute's value, as `update()` does, posting nothing."""
+    attribute._value = value  # pyright: ignore[reportPrivateUsage]
+    events = attribute._on_update_events  # pyright: ignore[reportPrivateUsage]
+    if events:
+        attribute._on_update_events = {e for e in events if not e.set(value)}  # pyright: ignore[reportPrivateUsage]
+
+
+async def init_setpoint(attribute: AttrR[Any, Any], value: Any) -> None:
+    """An `AttrRW`'s first value also becomes its setpoint, as in `update()`."""
+    if isinstance(attribute, AttrRW) and not attribute._setpoint_initialised:  # pyright: ignore[reportPrivateUsage]
+        await attribute._call_sync_setpoint_callbacks(value)  # pyright: ignore[reportPrivateUsage]
+        attribute._setpoint_initialised = True  # pyright: ignore[reportPrivateUsage]
+
+
+def in_record_setter(record: Any) -> Callable[[Any, float], None]:
+    """`set(value, timestamp=stamp)` of a softioc in record, NO_ALARM, that
+    queues the record's processing without releasing the GIL (see above)."""
+    device = record._RecordWrapper__device
+    to_epics = device._value_to_epics
+    request = _scan_io_request_keeping_gil()
+
+    def set_value(value: Any, stamp: float) -> None:
+        device._value = (to_epics(value), 0, 0, stamp)
+        ioscan = device._DeviceSupportCore__ioscanpvt
+        if ioscan:
+            request(ioscan)
+
+    return set_value
+
+
+@functools.cache
+def _scan_io_request_keeping_gil() -> Any:
+    from epicscorelibs.ioc import dbCore
+
+    function = ctypes.PyDLL(dbCore._name).scanIoRequest
+    function.argtypes = (ctypes.c_void_p,)
+    function.restype = None
+    return function
+
+
+def _softioc_problems() -> list[str]:
+    """What `in_record_setter` needs of softioc and is not there."""
+    from softioc.device import ProcessDeviceSupportIn
+    from softioc.device_core import DeviceSupportCore
+    from softioc.pythonSoftIoc import RecordWrapper
+
+    problems: list[str] = []
+    if (
+        "_DeviceSupportCore__ioscanpvt"
+        not in DeviceSupportCore.trigger.__code__.co_names
+    ):
+        problems.append("softioc's trigger() no longer uses __ioscanpvt")
+    if "_value" not in ProcessDeviceSupportIn._process.__code__.co_names:
+        problems.append("softioc's in records no longer process _value")
+    if not hasattr(ProcessDeviceSupportIn, "_value_to_epics"):
+        problems.append("softioc's in records have no _value_to_epics")
+    if "_RecordWrapper__device" not in RecordWrapper.__getattr__.__code__.co_names:
+        problems.append("softioc's RecordWrapper no longer keeps __device")
+    return problems

@@ -23,6 +23,7 @@ from fastcs.attributes import Attribute, AttrR
 
 from fastcs_ethercat.ioc import alarms
 from fastcs_ethercat.ioc.alarms import Severity, Status
+from fastcs_ethercat.ioc.publish import Publisher
 
 logger = logging.getLogger(__name__)
 
@@ -45,10 +46,11 @@ class Reason:
 class Health:
     """Alarm reasons per attribute, and the values held back meanwhile."""
 
-    def __init__(self) -> None:
+    def __init__(self, publisher: Publisher | None = None) -> None:
+        self.publisher = publisher or Publisher()
         self._reasons: dict[int, dict[str, Reason]] = {}
         self._attributes: dict[int, Attribute[Any, Any]] = {}
-        self._held: dict[int, Any] = {}
+        self._held: dict[int, tuple[Any, float | None]] = {}
         self.published = 0
         """Alarm changes published (for tests and statistics)."""
         self.failures = 0
@@ -89,16 +91,17 @@ class Health:
         for attribute in attributes:
             await self._drop(attribute, {reason})
 
-    async def post(self, attribute: AttrR[Any, Any], value: Any) -> None:
-        """A fresh value: publish it, unless the attribute stays in alarm."""
+    async def post(
+        self, attribute: AttrR[Any, Any], value: Any, stamp: float | None = None
+    ) -> None:
+        """A fresh value read at `stamp`: publish it, unless the attribute
+        stays in alarm."""
         key = id(attribute)
         if key in self._reasons:
-            self._held[key] = value
+            self._held[key] = (value, stamp)
             await self._drop(attribute, FRESH)
             return
-        validated = attribute.datatype.validate(value)
-        if not attribute.datatype.equal(attribute.get(), validated):
-            await attribute.update(validated)
+        await self.publisher.publish(attribute, value, stamp)
 
     def write_failed(self, attribute: Attribute[Any, Any], message: str) -> None:
         """A write the target refused: alarm now; the next value clears it."""
@@ -123,9 +126,7 @@ class Health:
         held = self._held.pop(key, None)
         if held is not None and isinstance(attribute, AttrR):
             try:
-                validated = attribute.datatype.validate(held)
-                if not attribute.datatype.equal(attribute.get(), validated):
-                    await attribute.update(validated)
+                await self.publisher.publish(attribute, *held)
             except Exception:
                 logger.exception("cannot post the held value of %s", attribute)
         self._clear(attribute)

@@ -106,7 +106,10 @@ def build_fastcs(
     if options.ca:
         from softioc.imports import callbackSetQueueSize
 
+        from fastcs_ethercat.ioc.record_checks import install_field_memo
+
         callbackSetQueueSize(options.callback_queue_size)
+        install_field_memo()  # one record per CA PV: check repeated fields once
     transports = [*build_transports(options), _Announce(prefix, on_ready)]
     return FastCS(root, transports, loop)
 

@@ -44,6 +44,7 @@ from collections import defaultdict
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from enum import StrEnum
+from functools import lru_cache
 from typing import Final
 
 from fastcs_ethercat.errors import UserError
@@ -151,8 +152,11 @@ def alias_key(names: Iterable[str]) -> str:
     return ALIAS_SEPARATOR.join(names)
 
 
+@lru_cache(maxsize=65536)
 def default_segment(name: str, kind: NodeKind | None = None) -> str:
-    """The readable PascalCase segment of a TwinCAT name (kind None: a symbol)."""
+    """The readable PascalCase segment of a TwinCAT name (kind None: a symbol).
+
+    Cached: every terminal of a type repeats the same symbol names."""
     if kind is not None:
         pattern, stem = _DEFAULT_PATTERNS[kind]
         if match := pattern.match(name.strip()):
@@ -183,7 +187,7 @@ def plan_pv_names(
     aliases = dict(aliases or {})
     for key, segment in aliases.items():
         check_alias(key, segment)
-    request_set = sorted(set(requests))
+    request_set = set(requests)  # order-free: siblings are sorted when named
     used: set[str] = set()
     shortened: list[Shortening] = []
 

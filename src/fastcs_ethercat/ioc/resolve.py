@@ -284,14 +284,44 @@ def chosen_symbols(
     return [s for s in free + in_group if s.selected]
 
 
+_TypeView = tuple[TerminalType, list[ExpandedSymbol], list[CoePoint]]
+
+
+class TypeViews:
+    """Per terminal type, what every terminal of that type shares: its symbols
+    expanded per channel and its CoE points. A rack repeats a few types many
+    times; computed once per type and discovery, not once per terminal."""
+
+    def __init__(self) -> None:
+        self._views: dict[int, _TypeView] = {}
+
+    def _of(self, terminal: TerminalType) -> _TypeView:
+        found = self._views.get(id(terminal))
+        if found is None:  # the terminal is kept in the entry: its id stays its own
+            found = (terminal, expanded_symbols(terminal), coe_points(terminal))
+            self._views[id(terminal)] = found
+        return found
+
+    def symbols(self, terminal: TerminalType) -> list[ExpandedSymbol]:
+        """`expanded_symbols(terminal)` (shared: do not modify)."""
+        return self._of(terminal)[1]
+
+    def coe(self, terminal: TerminalType) -> list[CoePoint]:
+        """`coe_points(terminal)`, a fresh list of the shared frozen points."""
+        return list(self._of(terminal)[2])
+
+
 def resolve_terminal(
     master: str,
     slave: SlaveInfo,
     entries: Sequence[AdsSymbolEntry],
     types: Types,
     registry: TerminalRegistry,
+    views: TypeViews | None = None,
 ) -> TerminalPlan:
     """One slave's plan: matched YAML (or generic) and its points."""
+    if views is None:
+        views = TypeViews()
     match = registry.lookup(slave.product_code, slave.revision, slave.vendor_id)
     if match is None:
         plan = TerminalPlan(slave=slave, terminal_type=None)
@@ -315,7 +345,7 @@ def resolve_terminal(
         )
     prefix = f"{slave.name}."
     live = {e.name[len(prefix) :]: e for e in entries if e.name.startswith(prefix)}
-    symbols = expanded_symbols(terminal)
+    symbols = views.symbols(terminal)
     plan.active_group = detect_active_group(terminal, symbols, live)
     wanted = terminal.active_group
     if wanted is not None and plan.active_group not in (None, wanted.name):
@@ -335,7 +365,7 @@ def resolve_terminal(
         if entry is not None:
             for member in symbol_members(entry, types):
                 plan.points.append(_point(master, entry, member, names.take(attribute)))
-    plan.coe = coe_points(terminal)
+    plan.coe = views.coe(terminal)
     return plan
 
 
@@ -463,9 +493,10 @@ def resolve_master(
         master.name, groups.get(master.name, []), types
     )
     warnings: list[str] = []
+    views = TypeViews()
     for slave in slaves:
         plan = resolve_terminal(
-            master.name, slave, groups.get(slave.name, []), types, registry
+            master.name, slave, groups.get(slave.name, []), types, registry, views
         )
         override = config.terminals.get(slave.name)
         if override is not None:

@@ -35,6 +35,7 @@ from fastcs.util import ONCE
 from fastcs_ethercat.ioc.datatypes import ExactFloat, description, to_fastcs
 from fastcs_ethercat.ioc.launch import LaunchOptions, run
 from fastcs_ethercat.ioc.naming import Node, NodeKind, PvNames, PvRequest, plan_pv_names
+from fastcs_ethercat.ioc.publish import Publisher
 
 MASTER: Final = Node(NodeKind.MASTER, "Device 1 (EtherCAT)")
 COUPLER: Final = Node(NodeKind.COUPLER, "Term 1 (EK1100)")
@@ -182,7 +183,8 @@ class SpikeRoot(Controller):
 
 
 async def measure_updates(bench: SpikeBench, rounds: int = 5) -> dict[str, float]:
-    """Microseconds per `update()`: changed value, same value, and via gather."""
+    """Microseconds per `update()`: changed value, same value, via gather, and
+    through the IOC's `Publisher`."""
     attributes = [*bench.floats, *bench.ints]
 
     async def timed(values: Sequence[float], together: bool = False) -> float:
@@ -197,10 +199,28 @@ async def measure_updates(bench: SpikeBench, rounds: int = 5) -> dict[str, float
         elapsed = time.perf_counter() - started
         return 1e6 * elapsed / (len(values) * len(attributes))
 
+    async def published(values: Sequence[float]) -> float:
+        publisher = Publisher()
+        publisher.start()
+        stamp = time.time()
+        await asyncio.gather(*(publisher.publish(a, -1.0, stamp) for a in attributes))
+        started = time.perf_counter()
+        for value in values:
+            for attribute in attributes:
+                await publisher.publish(attribute, value, stamp)
+        elapsed = time.perf_counter() - started
+        return 1e6 * elapsed / (len(values) * len(attributes))
+
     changed = await timed([k + 0.5 for k in range(rounds)])
     unchanged = await timed([rounds - 0.5] * rounds)
     together = await timed([k + 100.5 for k in range(rounds)], together=True)
-    return {"changed_us": changed, "unchanged_us": unchanged, "gather_us": together}
+    publish = await published([k + 200.0 for k in range(rounds)])
+    return {
+        "changed_us": changed,
+        "unchanged_us": unchanged,
+        "gather_us": together,
+        "published_us": publish,
+    }
 
 
 def _initial(symbol: SpikeSymbol) -> Any:

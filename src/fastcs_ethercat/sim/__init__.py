@@ -25,10 +25,12 @@ Model (this package, sans-I/O) and I/O (`server`, `udp`, `control`,
     (`address_or_name=None`: every slave; `state`: "INIT", "PREOP",
     "SAFEOP", "OP" or the raw AL byte), `online_change(pdo_groups=None)`,
     `set_run_state(running)`, `force_error(code, group=None)`,
-    `clear_faults()`, `get_symbol_value(name)`, `set_symbol_value(name,
-    value)` (TwinCAT names; structures as dicts, arrays as lists; an input
-    set this way keeps its value until `clear_faults`), `describe() ->
-    dict` (masters, slaves, symbol counts).
+    `fail_symbols(code, symbols)` (reads touching those symbols fail, per
+    item in a sum read; `sim.itemfaults`), `clear_faults()`,
+    `get_symbol_value(name)`, `set_symbol_value(name, value)` (TwinCAT
+    names; structures as dicts, arrays as lists; an input set this way
+    keeps its value until `clear_faults`), `describe() -> dict` (masters,
+    slaves, symbol counts).
 - `sim.probe.SimProbe`: an in-process client (codec in, codec out) for
   tests, benchmarks and tools.
 

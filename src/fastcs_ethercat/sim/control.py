@@ -9,7 +9,8 @@ another process (stdlib asyncio only, one request per connection):
     GET    /symbols/{name}     {"name": ..., "value": ...}
     PUT    /symbols/{name}     body {"value": ...}: force a value
     GET    /faults             the faults in force
-    POST   /faults             body {"kind": ..., ...parameters}
+    POST   /faults             body {"kind": ..., ...parameters}; 400 for a
+                               bad kind, bad parameters or unknown symbols
     DELETE /faults             clear every fault
     GET    /status             NetId, ports, connections, the model
 
@@ -23,7 +24,7 @@ import concurrent.futures
 import json
 import logging
 import threading
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from http import HTTPStatus
 from typing import Any, Final, Protocol, TypeVar
@@ -64,6 +65,8 @@ class ControllableTarget(Protocol):
     def set_run_state(self, running: bool) -> Any: ...
 
     def force_error(self, code: int, group: int | None = None) -> Any: ...
+
+    def fail_symbols(self, code: int, symbols: Sequence[str]) -> Any: ...
 
     def clear_faults(self) -> Any: ...
 
@@ -205,6 +208,12 @@ class SimControl:
                 self._server.refuse(params["seconds"])
             case FaultKind.STALL:
                 self._server.stall(params.get("seconds"))
+            case FaultKind.ERROR if "symbols" in params:
+                try:
+                    self._target.fail_symbols(params["code"], params["symbols"])
+                except KeyError as error:
+                    raise FaultError(str(error.args[0])) from None
+                self._model_faults.append(fault)
             case FaultKind.ERROR:
                 self._server.force_error(params["code"], params.get("group"))
                 self._target.force_error(params["code"], params.get("group"))
@@ -307,10 +316,9 @@ class ControlRoutes:
                 return HTTPStatus.OK, {"active": control.faults()}
             if method == "POST":
                 try:
-                    fault = parse_fault(_json_body(body))
+                    fault = control.add_fault(parse_fault(_json_body(body)))
                 except FaultError as error:
                     raise ControlError(HTTPStatus.BAD_REQUEST, str(error)) from None
-                control.add_fault(fault)
                 return HTTPStatus.OK, {
                     "applied": fault.to_json(),
                     "active": control.faults(),

@@ -20,6 +20,7 @@ from fastcs_ethercat.sim.generators import (
     leaf_key,
 )
 from fastcs_ethercat.sim.image import ProcessImage
+from fastcs_ethercat.sim.itemfaults import FailingBits, error_of, failing_bits
 from fastcs_ethercat.sim.layout import (
     DATAGRAM_IN_OUT,
     DATAGRAM_OUTPUTS,
@@ -72,6 +73,8 @@ class SimDevice:
         self._next_handle = FIRST_HANDLE
         self._pinned: set[str] = set()
         self._toggle = 0
+        self.read_errors: dict[str, int] = {}
+        """Symbol name -> the ADS error every read of it answers (a fault)."""
         self._build(None)
 
     @property
@@ -249,9 +252,25 @@ class SimDevice:
             return AdsReturnCode.DEVICE_SYMBOL_NOT_FOUND
         return AdsReturnCode.NO_ERROR
 
+    # -- per-symbol read errors ------------------------------------------------
+
+    def fail_reads(self, name: str, code: int) -> None:
+        """Every read touching symbol `name` answers `code` (until cleared)."""
+        self._require(name)
+        self.read_errors[name] = code
+
+    def failing(self) -> list[FailingBits]:
+        """Where the symbols of `read_errors` are in the current layout."""
+        return failing_bits(self.table, self.read_errors) if self.read_errors else []
+
     def read_resolved(self, found: Resolved, length: int) -> tuple[int, bytes]:
         if length < found.size:
             return AdsReturnCode.DEVICE_INVALID_SIZE, b""
+        if self.read_errors:
+            bits = FailingBits.of(found, 0)
+            code = error_of(self.failing(), bits.area, bits.first, bits.end)
+            if code:
+                return code, b""
         return AdsReturnCode.NO_ERROR, self.image.read_raw(
             found.area, found.bit_address, found.type
         )

@@ -22,7 +22,9 @@ class FaultKind(StrEnum):
     STALL = "stall"
     """Hold every response (and notification) for `seconds`, or until cleared."""
     ERROR = "error"
-    """Answer requests with ADS error `code` (only for index `group` if given)."""
+    """Answer requests with ADS error `code` (only for index `group` if given).
+    With `symbols` (TwinCAT names) only reads touching those symbols fail, per
+    item inside a sum read, as TwinCAT reports per-item errors in 0xF080."""
     SLAVE_STATE = "slave_state"
     """Put one slave (`address` or `name`; default all) into an EtherCAT state
     (INIT, PREOP, BOOT, SAFEOP, OP)."""
@@ -115,6 +117,21 @@ def _pdo_groups(value: Any) -> dict[str, str]:
     return dict(value)
 
 
+def _symbols(value: Any) -> list[str]:
+    """A non-empty list of TwinCAT symbol names (one name alone is accepted)."""
+    names = [value] if isinstance(value, str) else value
+    if (
+        not isinstance(names, list | tuple)
+        or not names
+        or not all(isinstance(name, str) and name for name in names)
+    ):
+        raise FaultError(
+            'symbols is a list of TwinCAT symbol names, e.g. ["Term 5 (EL3104).'
+            'AI Compact Channel 1"]'
+        )
+    return list(dict.fromkeys(names))
+
+
 def _check_known(body: Mapping[str, Any], allowed: set[str]) -> None:
     unknown = set(body) - allowed - {"kind"}
     if unknown:
@@ -150,12 +167,16 @@ def parse_fault(body: Any) -> Fault:
             if body.get("seconds") is not None:
                 params["seconds"] = _number(body["seconds"], "seconds")
         case FaultKind.ERROR:
-            _check_known(body, {"code", "group"})
+            _check_known(body, {"code", "group", "symbols"})
             if "code" not in body:
                 raise FaultError("error needs code (an ADS return code, e.g. 1793)")
             params["code"] = _integer(body["code"], "code", 1, 0xFFFF_FFFF)
+            if body.get("group") is not None and body.get("symbols") is not None:
+                raise FaultError("give an index group or symbols, not both")
             if body.get("group") is not None:
                 params["group"] = _integer(body["group"], "group", 0, 0xFFFF_FFFF)
+            if body.get("symbols") is not None:
+                params["symbols"] = _symbols(body["symbols"])
         case FaultKind.SLAVE_STATE:
             _check_known(body, {"state", "address", "name", "device"})
             if "state" not in body:

@@ -50,6 +50,7 @@ from fastcs_ethercat.ads.sums import (
 )
 from fastcs_ethercat.ads.wire import decode_text
 from fastcs_ethercat.sim.device import SimDevice
+from fastcs_ethercat.sim.itemfaults import FailingBits, item_error
 from fastcs_ethercat.sim.layout import AREAS, INPUTS, OUTPUTS, ImageArea
 from fastcs_ethercat.sim.master import SlaveRuntime
 
@@ -219,6 +220,8 @@ class DevicePort(Port):
         place = self._area(group)
         if place is not None:
             area, bits = place
+            if code := item_error(dev.failing(), group, offset, length):
+                return code, b""
             if bits:
                 return dev.image.read_bit_bytes(area, offset, length)
             return dev.image.read_bytes(area, offset, length)
@@ -312,6 +315,9 @@ class DevicePort(Port):
         if self._too_many(count):
             return AdsReturnCode.DEVICE_INVALID_SIZE, b""
         image = self.dev.image
+        failing = self.dev.failing()
+        if failing:
+            return self._sum_read_failing(count, length, data, failing)
         plan = self.plans.lookup(data, image.inputs, image.outputs)
         if plan is not None and plan.count == count:
             if length < plan.read_length:
@@ -333,6 +339,27 @@ class DevicePort(Port):
             if i.index_group in areas
             else _bit(bits[i.index_group], i.index_offset)
             if i.length == 1 and i.index_group in bits
+            else self._sub_read(i.index_group, i.index_offset, i.length)
+            for i in request.items
+        ]
+        return AdsReturnCode.NO_ERROR, SumReadResponse.for_items(
+            request.items, outcomes
+        ).encode()
+
+    def _sum_read_failing(
+        self, count: int, length: int, data: bytes, failing: list[FailingBits]
+    ) -> Outcome:
+        """A sum read while symbols fail: items touching one answer its error
+        (zero data), the others their values; no fast path."""
+        try:
+            request = SumReadRequest.decode(data, count)
+        except AdsCodecError as error:
+            return error.return_code, b""
+        if length < request.read_length:
+            return AdsReturnCode.DEVICE_INVALID_SIZE, b""
+        outcomes = [
+            (code, b"")
+            if (code := item_error(failing, i.index_group, i.index_offset, i.length))
             else self._sub_read(i.index_group, i.index_offset, i.length)
             for i in request.items
         ]

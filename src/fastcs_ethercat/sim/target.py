@@ -8,7 +8,7 @@ socket. See `sim/__init__.py` for the interface and the behaviour.
 from __future__ import annotations
 
 import math
-from collections.abc import Collection, Mapping
+from collections.abc import Collection, Mapping, Sequence
 from pathlib import Path
 from typing import Any, Final
 
@@ -310,10 +310,19 @@ class SimTarget:
         """Answer every request (or those for one index group) with `code`."""
         self._forced = (int(code), group)
 
+    def fail_symbols(self, code: int, symbols: Sequence[str]) -> None:
+        """Every read touching one of `symbols` answers `code` (per item in a
+        sum read); unknown names raise KeyError and change nothing."""
+        owners = [(self._device_of(name, None), name) for name in symbols]
+        for device, name in owners:
+            device.fail_reads(name, int(code))
+
     def clear_faults(self) -> None:
         """Back to normal: no forced error, running, slaves in their chain
         states with links up, every input driven by its generator again."""
         self._forced = None
+        for device in self.devices:
+            device.read_errors.clear()
         self.set_run_state(True)
         for device in self.devices:
             device.ethercat.reset()

@@ -8,6 +8,7 @@ from pathlib import Path
 
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.terminals.files import read_terminal_file
+from fastcs_ethercat.terminals.load_cache import read_terminal_file_cached
 from fastcs_ethercat.terminals.registry import RegisteredTerminal, TerminalRegistry
 
 YAML_SUFFIXES = (".yaml", ".yml")
@@ -49,11 +50,17 @@ def terminal_paths(sources: Iterable[Path | str]) -> list[Path]:
     return list(unique)
 
 
-def load_terminals(sources: Iterable[Path | str]) -> TerminalRegistry:
-    """Every terminal type in the named files (either YAML layout)."""
+def load_terminals(
+    sources: Iterable[Path | str], *, use_cache: bool = True
+) -> TerminalRegistry:
+    """Every terminal type in the named files (either YAML layout).
+
+    Files already validated once come from the content-keyed cache
+    (`load_cache`), unless `use_cache` is False."""
+    read = read_terminal_file_cached if use_cache else read_terminal_file
     items = [
         RegisteredTerminal(type_name=name, terminal=terminal, path=path)
         for path in terminal_paths(sources)
-        for name, terminal in read_terminal_file(path).items()
+        for name, terminal in read(path).items()
     ]
     return TerminalRegistry(items)

@@ -172,12 +172,14 @@ class MasterController(Controller):
             assert isinstance(attr, AttrR)
             self.by_key[point.key] = attr
 
-    async def apply_change(self, point: Point, value: Any) -> None:
+    async def apply_change(
+        self, point: Point, value: Any, stamp: float | None = None
+    ) -> None:
         attr = self.by_key.get(point.key)
         if attr is None:
             return
         try:
-            await self.health.post(attr, from_device(attr, value))
+            await self.health.post(attr, from_device(attr, value), stamp)
         except Exception:  # one value must not stop the scan
             self.failures += 1
 

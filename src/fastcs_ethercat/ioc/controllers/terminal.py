@@ -28,7 +28,7 @@ from fastcs_ethercat.ioc.attributes import (
     attribute_for_point,
     from_device,
 )
-from fastcs_ethercat.ioc.health import Health
+from fastcs_ethercat.ioc.health import COMM, Health
 from fastcs_ethercat.ioc.plan import Point, TerminalPlan
 
 DIAGNOSTIC_LEAVES: Final = (
@@ -46,6 +46,8 @@ COE_LEAF_PREFIX: Final = "Coe "
 UNKNOWN_TYPE: Final = "unknown"
 SLAVE: Final = "slave"
 """Health reason: the terminal is not in OP or lost its link."""
+COE_READ: Final = "coe"
+"""Health reason: a CoE value could not be read again after an outage."""
 
 
 def coe_leaf(attribute: str) -> str:
@@ -167,13 +169,15 @@ class TerminalController(Controller):
         assert isinstance(attr, AttrR)
         self.coe_attributes.append(attr)
 
-    async def apply_change(self, point: Point, value: Any) -> None:
+    async def apply_change(
+        self, point: Point, value: Any, stamp: float | None = None
+    ) -> None:
         """Post one changed value of one of this terminal's points."""
         attr = self.by_key.get(point.key)
         if attr is None:
             return
         try:
-            await self.health.post(attr, from_device(attr, value))
+            await self.health.post(attr, from_device(attr, value), stamp)
             self.failed_points.pop(point.key, None)
         except Exception as error:  # one value must not stop the scan
             self.failed_points[point.key] = f"{type(error).__name__}: {error}"
@@ -208,18 +212,40 @@ class TerminalController(Controller):
             await self.health.mark_ok(self.by_key.values(), SLAVE)
 
     def target_attributes(self) -> list[AttrR[Any, Any]]:
-        """What goes invalid when the target is lost: points and diagnostics."""
+        """What goes invalid when the target is lost: points, diagnostics and
+        CoE values (the slave may come back with other parameters)."""
         diag = [attr for leaf, attr in self.diag.items() if leaf != "Type"]
-        return [*self.by_key.values(), *diag]
+        return [*self.by_key.values(), *diag, *self.coe_attributes]
 
     async def refresh_coe(self) -> None:
-        """Read every CoE attribute again (SDO uploads), on demand."""
-        if self.coe_io is None:
-            return
+        """Read every CoE attribute again (SDO uploads): on demand, and after
+        the target came back, so the PVs show what the slave holds now."""
         for attr in self.coe_attributes:
-            ref = attr.io_ref
-            if isinstance(ref, CoeRef):
-                await self.coe_io.update(attr)
+            await self.read_coe(attr)
+
+    async def read_coe(self, attr: AttrR[Any, Any]) -> None:
+        """One SDO upload posted through `health`: a fresh value ends a
+        connection alarm; a failed read of a value in alarm says so (READ)
+        instead of the stale reason. Never raises."""
+        coe_io, ref = self.coe_io, attr.io_ref
+        if coe_io is None or not isinstance(ref, CoeRef):
+            return
+        coe = ref.coe
+        try:
+            value = from_device(attr, await coe_io.reader(coe))
+        except Exception as error:  # one object must not stop the others
+            text = f"{type(error).__name__}: {error}"
+            coe_io.failures[coe.attribute] = text
+            if self.health.is_invalid(attr):
+                self.health.mark_invalid([attr], COE_READ, Status.READ, text)
+                await self.health.mark_ok([attr], COMM)
+            return
+        coe_io.failures.pop(coe.attribute, None)
+        try:
+            await self.health.post(attr, value)
+            await self.health.mark_ok([attr], COE_READ)
+        except Exception as error:
+            coe_io.failures[coe.attribute] = f"{type(error).__name__}: {error}"
 
 
 class GenericTerminalController(TerminalController):

@@ -1,0 +1,98 @@
+"""IOC start shortcuts: lean FastCS imports and softioc's field checks done once.
+
+Both change library state of the process (imports, softioc's record set), so
+each check runs in a fresh Python process.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import textwrap
+
+from .conftest import loopback_env
+
+
+def _run(code: str) -> str:
+    done = subprocess.run(
+        [sys.executable, "-c", textwrap.dedent(code)],
+        capture_output=True,
+        text=True,
+        env=loopback_env(),
+        timeout=120,
+        check=False,
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    return done.stdout
+
+
+def test_lean_imports_leave_out_unused_transports_only_while_importing() -> None:
+    out = _run(
+        """
+        import sys
+        import setuptools_dso.runtime as runtime
+        before = runtime._auto_pkg
+        from fastcs_ethercat.ioc.lean_imports import import_ioc_modules
+        import_ioc_modules()
+        print("ca", "softioc" in sys.modules, "p4p" in sys.modules)
+        print("rest", "fastcs.transports.rest" in sys.modules, "fastapi" in sys.modules)
+        print("restored", runtime._auto_pkg is before)
+        import fastcs.transports.rest.transport  # still there when asked for
+        print("rest later", "fastapi" in sys.modules)
+        """
+    )
+    assert out.split("\n")[:4] == [
+        "ca True True",
+        "rest False False",
+        "restored True",
+        "rest later True",
+    ]
+
+
+_BAD_FIELDS = """
+from softioc import builder
+
+def errors(tag):
+    found = []
+    for name, fields in [
+        ("aIn", {"SCAN": "bogus"}),
+        ("aIn", {"PREC": "abc"}),
+        ("aIn", {"NOTAFIELD": 1}),
+        ("mbbIn", {"ZRST": "a" * 50}),
+        ("longOut", {"DRVH": "x"}),
+    ]:
+        try:
+            getattr(builder, name)(f"T:{tag}:{len(found)}", **fields)
+            found.append("accepted")
+        except Exception as error:
+            found.append(f"{type(error).__name__}: {error}")
+    return found
+"""
+
+
+def test_field_checks_raise_the_library_errors_and_accept_repeats() -> None:
+    out = _run(
+        _BAD_FIELDS
+        + textwrap.dedent(
+            """
+        from fastcs_ethercat.ioc.record_checks import install_field_memo
+        library = errors("lib")
+        install_field_memo()
+        install_field_memo()  # idempotent
+        assert errors("memo") == library, (errors("again"), library)
+        assert errors("again") == library  # failures are never remembered
+        for index in range(50):  # repeated and new values of one record type
+            builder.aIn(f"T:OK:{index}", EGU="mm", PREC=3, DESC=f"point {index}")
+            builder.boolIn(f"T:B:{index}", ZNAM="off", ONAM="on")
+        print("\\n".join(library))
+        """
+        )
+    )
+    assert out.splitlines() == [
+        'AssertionError: Can\'t write "bogus" to field SCAN: Not a valid menu choice',
+        'AssertionError: Can\'t write "abc" to field PREC: Not a valid integer',
+        "AttributeError: Invalid field name NOTAFIELD",
+        "AssertionError: Can't write \"" + "a" * 50 + '" to field ZRST: String'
+        " too long, max 25 characters",
+        'AssertionError: Can\'t write "x" to field DRVH: Not a valid integer',
+    ]
