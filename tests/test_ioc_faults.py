@@ -394,16 +394,7 @@ def test_coe_values_go_invalid_on_loss_and_are_read_again(rig: Rig) -> None:
         loss = rig.wait_invalid(COE + "_RBV", stopped, status="COMM")
         alarm = rig.ioc.tool("caget", "-a", readback)
     finally:
-        new = SimProcess(
-            chain=DEMO_CHAIN,
-            terminals=TERMINALS_DIR,
-            port=old.tcp_port,
-            udp_port=old.udp_port,
-            env=rig.ioc.env,
-        )
-        rig.replaced.append(new)
-        new.start()
-        rig.sim = new
+        _start_in_place_of(rig, old, DEMO_CHAIN)
     started = time.monotonic()
     back = rig.wait_valid(COE + "_RBV", started)
     value = rig.watch.value(readback)
@@ -624,6 +615,12 @@ def _restart_sim(rig: Rig, chain: Path) -> float:
     old = rig.sim
     stopped = time.monotonic()  # the IOC may notice while the old one stops
     old.stop()
+    _start_in_place_of(rig, old, chain)
+    return stopped
+
+
+def _start_in_place_of(rig: Rig, old: SimProcess, chain: Path) -> None:
+    """A simulator of `chain` on the ports of the stopped `old` one."""
     new = SimProcess(
         chain=chain,
         terminals=TERMINALS_DIR,
@@ -634,7 +631,6 @@ def _restart_sim(rig: Rig, chain: Path) -> float:
     rig.replaced.append(new)
     new.start()
     rig.sim = new
-    return stopped
 
 
 def test_target_restarted_with_another_chain_keeps_unchanged_terminals(

@@ -23,15 +23,14 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
+from fastcs_ethercat.cache_dir import cache_dir
+
 CACHE_FORMAT = 1
-APP_DIR = "fastcs-ethercat"
-SUBDIR = "esi-catalog"
 
 
 def cache_root() -> Path:
     """`$XDG_CACHE_HOME/fastcs-ethercat/esi-catalog` (XDG default ~/.cache)."""
-    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(base) / APP_DIR / SUBDIR
+    return cache_dir("esi-catalog")
 
 
 def sha256_of(data: bytes) -> str:

@@ -15,6 +15,7 @@ import zipfile
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+from fastcs_ethercat.cache_dir import cache_dir
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.esi.catalog import EsiCatalog, build_catalog
 
@@ -29,8 +30,7 @@ CHUNK = 1 << 16
 
 def esi_cache_dir() -> Path:
     """`$XDG_CACHE_HOME/fastcs-ethercat/esi` (XDG default `~/.cache`)."""
-    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(base) / "fastcs-ethercat" / "esi"
+    return cache_dir("esi")
 
 
 def cached_zip() -> Path:

@@ -23,18 +23,17 @@ from pathlib import Path
 
 import pydantic
 
+from fastcs_ethercat.cache_dir import cache_dir
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.terminals.files import parse_terminal_text
 from fastcs_ethercat.terminals.model import TerminalType
 
 CACHE_FORMAT = 1
-APP_DIR = "fastcs-ethercat"
-SUBDIR = "terminal-yaml"
 
 
 def cache_root() -> Path:
-    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(base) / APP_DIR / SUBDIR
+    """`$XDG_CACHE_HOME/fastcs-ethercat/terminal-yaml` (XDG default ~/.cache)."""
+    return cache_dir("terminal-yaml")
 
 
 @cache
