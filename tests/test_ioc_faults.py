@@ -260,20 +260,24 @@ def clean(request: pytest.FixtureRequest) -> Iterator[None]:
 def _outage(rig: Rig, name: str, kind: str, hold: float, **params: Any) -> None:
     """Inject `kind`, expect every PV INVALID, clear after `hold`, expect all back."""
     pid = rig.ioc.process.pid
+    reconnects = int(rig.root("Reconnects"))
     start = time.monotonic()
     rig.sim.add_fault(kind, **params)
     loss = rig.wait_invalid(SINE, start, status="COMM")
     steady_loss = rig.wait_invalid(STEADY, start, status="COMM")
-    state = rig.root("ConnectionState")
     time.sleep(max(0.0, hold - (time.monotonic() - start)))
     cleared = time.monotonic()
     rig.sim.clear_faults()
     back = rig.wait_valid(SINE, cleared)
     rig.figures[f"{name}_loss"] = max(loss, steady_loss)
     rig.figures[f"{name}_recovery"] = back
+    # The failed poll alarms the PVs at once; the supervisor, woken by it,
+    # declares the loss and reconnects (too quickly for a caget to catch
+    # every state in between): it counts a reconnect.
+    reconnected = wait_for(lambda: int(rig.root("Reconnects")) > reconnects, 5)
 
     assert max(loss, steady_loss) < LOSS_LIMIT_S
-    assert state in ("DISCONNECTED", "STOPPED", "RESYNCING")
+    assert reconnected
     assert back < RECOVERY_LIMIT_S
     assert rig.ioc.process.poll() is None and rig.ioc.process.pid == pid
 
@@ -290,14 +294,14 @@ def test_refused_connections_back_after_refusal(rig: Rig) -> None:
     start = time.monotonic()
     rig.sim.add_fault("refuse", seconds=3)
     loss = rig.wait_invalid(SINE, start, status="COMM")
-    disconnected = rig.root("ConnectionState")
+    disconnected = wait_for(lambda: rig.root("ConnectionState") == "DISCONNECTED", 2)
     error = rig.root("LastError")
     back = rig.wait_valid(SINE, start + 3)
     rig.figures["refuse3_loss"] = loss
     rig.figures["refuse3_recovery_after_refusal"] = back
 
     assert loss < LOSS_LIMIT_S
-    assert disconnected == "DISCONNECTED"
+    assert disconnected
     assert error
     assert back < RECOVERY_LIMIT_S
 
