@@ -5,6 +5,7 @@ received, change-to-event latency, peak memory."""
 from __future__ import annotations
 
 import asyncio
+import os
 import statistics
 import time
 from collections.abc import AsyncIterator
@@ -42,6 +43,9 @@ from fastcs_ethercat.sim.process import SimProcess
 SETTLE_S = 1.0
 """Polling after every PV connected, before peak memory is read."""
 POLLING_TIMEOUT_S = 30.0
+PREFIX = f"BN{os.getpid() % 1000:03d}"
+"""Five characters like "BENCH", and this run's own: two benchmark runs (or a
+test) on one host must not serve the same PV names."""
 SUM_READ_KEY = f"0x{IndexGroup.SUMUP_READ:X}"
 """The simulator's counter key of sum reads (0xF080)."""
 
@@ -80,7 +84,7 @@ async def running(
     )
     config = write_ioc_config(
         context.scratch / f"{name}-ioc.yaml",
-        prefix="BENCH",
+        prefix=PREFIX,
         terminals=terminals,
         poll_rate_hz=poll_rate_hz,
     )
