@@ -119,8 +119,14 @@ class CoeIO(AttributeIO[Any, CoeRef]):
         self.reader = reader
         self.writer = writer
         self.failures: dict[str, str] = {}
+        self.read_back: Callable[[AttrR[Any, Any]], Awaitable[None]] | None = None
+        """How its terminal reads and posts a value (alarms, timestamps); the
+        plain FastCS update until a terminal controller sets it."""
 
     async def update(self, attr: AttrR[Any, CoeRef]) -> None:
+        if self.read_back is not None:
+            await self.read_back(attr)
+            return
         coe = attr.io_ref.coe
         try:
             await attr.update(await self.reader(coe))

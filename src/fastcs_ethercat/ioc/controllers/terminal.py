@@ -120,6 +120,8 @@ class TerminalController(Controller):
         self.slave_problem = ""
         """Why the slave's points are in alarm ("" when it is in OP, linked)."""
         self.coe_io = coe_io
+        if coe_io is not None:
+            coe_io.read_back = self.read_coe
         self.by_key: dict[str, AttrR[Any, Any]] = {}
         self.coe_attributes: list[AttrR[Any, Any]] = []
         self.unserved: list[tuple[str, str]] = []
