@@ -414,3 +414,25 @@ def test_values_of_one_poll_cycle_carry_one_timestamp(demo: Demo) -> None:
     # most one per cycle, whatever the number of PVs.
     assert len(cycles) <= seconds * rate + 5 < sum(map(len, changing.values())) / 2
     assert all(len(stamps) >= 5 for stamps in shared)  # PVA has the same times
+
+
+def test_coe_values_are_read_after_start_and_valid(demo: Demo) -> None:
+    """CoE values are read in the background once the IOC serves: each turns
+    from INVALID (not read yet) to the slave's value with no alarm."""
+    names = [
+        entry.name + ("_RBV" if entry.access == "rw" else "")
+        for entry in demo.pvs.values()
+        if entry.source.startswith("CoE:")
+        and entry.name.startswith(demo.ioc.pv(COMPACT + ":"))
+    ]
+
+    def severities() -> list[int]:
+        with demo.ioc.p4p_context() as context:
+            values: Any = context.get(names, throw=False, timeout=10)
+        return [
+            -1 if isinstance(value, Exception) else value.raw.alarm.severity
+            for value in values
+        ]
+
+    assert len(names) >= 3
+    assert wait_for(lambda: set(severities()) == {0}, 20), severities()

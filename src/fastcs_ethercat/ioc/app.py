@@ -39,6 +39,7 @@ from fastcs_ethercat.ioc.coe import SlaveCoe
 from fastcs_ethercat.ioc.config import IocConfig
 from fastcs_ethercat.ioc.controllers.master import MasterAds, MasterStatus
 from fastcs_ethercat.ioc.controllers.root import PollStats
+from fastcs_ethercat.ioc.controllers.terminal import COE_READ, TerminalController
 from fastcs_ethercat.ioc.controllers.tree import PvEntry, Tree, build_tree, slave_path
 from fastcs_ethercat.ioc.discovery import discover, read_symbol_version
 from fastcs_ethercat.ioc.health import COMM, READ
@@ -60,6 +61,8 @@ from fastcs_ethercat.terminals.registry import TerminalRegistry
 logger = logging.getLogger(__name__)
 
 COE_REFRESH_WAIT_S: Final = 10.0
+COE_SLAVES_AT_ONCE: Final = 8
+"""Slaves whose CoE values are read at the same time (one ADS client each)."""
 """How long CoE values wait after a resync for the link to count as up."""
 CHAIN: Final = "chain"
 """Health reason: the point is gone from the target since a reconnect."""
@@ -421,10 +424,10 @@ class TargetLink:
         _follow_positions(ioc, plan)
         await start_polling(ioc)
         await ioc.tree.root.show_link(LinkState.CONNECTED, "")
-        self._start_coe_refresh()
+        self.start_coe_refresh()
         return plan.symbol_version
 
-    def _start_coe_refresh(self) -> None:
+    def start_coe_refresh(self) -> None:
         self._stop_coe_refresh()
         task = asyncio.create_task(self._refresh_coe())
         self.coe_refresh = task
@@ -451,9 +454,16 @@ class TargetLink:
             if time.monotonic() > deadline:
                 return
             await asyncio.sleep(0.02)
-        for master in ioc.tree.masters:
-            for terminal in master.terminals.values():
+        # A slave's mailbox takes one SDO at a time; several slaves at once.
+        slots = asyncio.Semaphore(COE_SLAVES_AT_ONCE)
+
+        async def refresh(terminal: TerminalController) -> None:
+            async with slots:
                 await terminal.refresh_coe()
+
+        await asyncio.gather(
+            *(refresh(t) for t in ioc.tree.terminals() if t.coe_attributes)
+        )
 
 
 def chain_changes(old: SystemPlan, new: SystemPlan) -> list[str]:
@@ -512,6 +522,12 @@ async def start_supervising(ioc: Ioc) -> Supervisor:
     ioc.supervisor = supervisor
     await start_polling(ioc)
     ioc.tasks.append(asyncio.create_task(supervisor.run()))
+    # CoE values are read now that every PV serves, not before: thousands of
+    # SDO uploads (mailbox round trips on a real bus) would hold up the start.
+    # Until read, each is INVALID (UDF).
+    coe = [a for t in ioc.tree.terminals() for a in t.coe_attributes]
+    ioc.tree.health.mark_invalid(coe, COE_READ, Status.UDF, "not read yet")
+    link.start_coe_refresh()
     return supervisor
 
 

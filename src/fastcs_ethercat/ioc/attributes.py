@@ -22,7 +22,6 @@ import numpy as np
 from fastcs.attributes import Attribute, AttributeIO, AttributeIORef, AttrR, AttrRW
 from fastcs.attributes.attr_w import AttrW
 from fastcs.datatypes import Bool, DataType, Enum, Int
-from fastcs.util import ONCE
 
 from fastcs_ethercat.ioc.datatypes import description, enum_class, to_fastcs
 from fastcs_ethercat.ioc.plan import CoePoint, Point, PointKind
@@ -100,11 +99,12 @@ class PointIO(AttributeIO[Any, PointRef]):
 
 @dataclass
 class CoeRef(AttributeIORef):
-    """The CoE object sub-item an attribute serves: read once at start."""
+    """The CoE object sub-item an attribute serves: read by its terminal once
+    the IOC serves (not by FastCS before: see `app.start_supervising`)."""
 
     coe: CoePoint
     _: KW_ONLY
-    update_period: float | None = ONCE
+    update_period: float | None = None
 
 
 class CoeIO(AttributeIO[Any, CoeRef]):

@@ -86,6 +86,10 @@ class Tree:
         sink = self.sinks.get(key)
         return None if sink is None else sink.by_key.get(key)
 
+    def terminals(self) -> list[TerminalController]:
+        """Every terminal controller, master by master, in bus order."""
+        return [t for master in self.masters for t in master.terminals.values()]
+
     def target_attributes(self) -> list[AttrR[Any, Any]]:
         """Every attribute whose value comes from the target (not the IOC)."""
         found: list[AttrR[Any, Any]] = []
