@@ -531,6 +531,32 @@ async def test_closed_client_raises_a_typed_error(server: ServerThread) -> None:
     assert closed.value.code == AdsReturnCode.CLIENT_PORT_NOT_OPEN
 
 
+async def test_close_skips_requests_queued_behind_a_stalled_one(
+    server: ServerThread,
+) -> None:
+    """Closing a client of a target that stopped answering waits for the
+    request on the wire, not for every queued one to time out in turn."""
+    ads = AdsClient(
+        "127.0.0.1", NET_ID, DEVICE_PORT, tcp_port=server.server.port, timeout_ms=400
+    )
+    await ads.open()
+    server.call(lambda: server.server.stall(10.0))
+    try:
+        queued = [asyncio.create_task(ads.read_state()) for _ in range(10)]
+        await asyncio.sleep(0.05)  # the first is on the wire, nine wait
+        started = time.perf_counter()
+        await ads.close()
+        closing = time.perf_counter() - started
+        results = await asyncio.gather(*queued, return_exceptions=True)
+    finally:
+        server.call(server.server.end_stall)
+
+    assert closing < 2.0  # ten timeouts in turn would be 4 s
+    assert all(isinstance(result, AdsError) for result in results)
+    skipped = [r for r in results if isinstance(r, AdsConnectionError)]
+    assert len(skipped) >= 8
+
+
 async def test_discover_net_id_over_udp(server: ServerThread) -> None:
     assert await discover_net_id(server.udp_host) == NET_ID
 

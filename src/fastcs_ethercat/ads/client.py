@@ -285,8 +285,14 @@ class AdsClient:
             self._notifications.clear()
             self._connection.close()
 
+        # Requests still queued behind the running one are skipped (see
+        # `_call`): closing waits for at most that one, never for a queue of
+        # requests to a target that is gone, each until its timeout.
+        loop = asyncio.get_running_loop()
         try:
-            await self._call("close", close_connection)
+            await loop.run_in_executor(self._executor, close_connection)
+        except pyads.ADSError as error:
+            logger.warning("%s: close: %s", self, error)
         finally:
             self._executor.shutdown(wait=False)
 
@@ -511,8 +517,14 @@ class AdsClient:
 
     async def _call(self, operation: str, job: Callable[[], _T]) -> _T:
         loop = asyncio.get_running_loop()
+
+        def unless_closed() -> _T:
+            if self._closed:  # closed while this request waited its turn
+                raise RuntimeError("cannot schedule new futures after shutdown")
+            return job()
+
         try:
-            return await loop.run_in_executor(self._executor, job)
+            return await loop.run_in_executor(self._executor, unless_closed)
         except pyads.ADSError as error:
             code = getattr(error, "err_code", AdsReturnCode.CLIENT_ERROR)
             raise ads_error(code, operation, self.target) from error

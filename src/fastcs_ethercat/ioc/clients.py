@@ -70,8 +70,7 @@ class ClientPool:
     async def close(self) -> None:
         """Close every client and remove every route they added."""
         clients, self._clients = list(self._clients.values()), {}
-        for client in clients:
-            await client.close()
+        await asyncio.gather(*(client.close() for client in clients))
         if clients:
             await asyncio.to_thread(
                 _forget_routes,
