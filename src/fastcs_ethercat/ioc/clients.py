@@ -70,7 +70,8 @@ class ClientPool:
     async def close(self) -> None:
         """Close every client and remove every route they added."""
         clients, self._clients = list(self._clients.values()), {}
-        await asyncio.gather(*(client.close() for client in clients))
+        for client in clients:  # one at a time: AdsLib's port close is not
+            await client.close()  # safe from several threads at once
         if clients:
             await asyncio.to_thread(
                 _forget_routes,
