@@ -7,24 +7,15 @@ from pathlib import Path
 
 import pytest
 
+from fastcs_ethercat.loopback import EPICS_LOOPBACK_ENV as LOOPBACK
+
 REPO_ROOT = Path(__file__).resolve().parents[1]
 SHARED_ESI = REPO_ROOT.parent / "shared" / "esi"
 TERMINALS_DIR = REPO_ROOT / "terminals"
 TEST_DATA = Path(__file__).resolve().parent / "data"
 
 #: Every EPICS process in tests runs with these: loopback only, no broadcast.
-EPICS_LOOPBACK_ENV: dict[str, str] = {
-    "EPICS_CA_AUTO_ADDR_LIST": "NO",
-    "EPICS_CA_ADDR_LIST": "127.0.0.1",
-    "EPICS_CAS_INTF_ADDR_LIST": "127.0.0.1",
-    "EPICS_CAS_AUTO_BEACON_ADDR_LIST": "NO",
-    "EPICS_CAS_BEACON_ADDR_LIST": "127.0.0.1",
-    "EPICS_PVA_AUTO_ADDR_LIST": "NO",
-    "EPICS_PVA_ADDR_LIST": "127.0.0.1",
-    "EPICS_PVAS_INTF_ADDR_LIST": "127.0.0.1",
-    "EPICS_PVAS_AUTO_BEACON_ADDR_LIST": "NO",
-    "EPICS_PVAS_BEACON_ADDR_LIST": "127.0.0.1",
-}
+EPICS_LOOPBACK_ENV: dict[str, str] = dict(LOOPBACK)
 
 # Set for this process too, so in-process clients (aioca, p4p) stay on loopback.
 os.environ.update(EPICS_LOOPBACK_ENV)

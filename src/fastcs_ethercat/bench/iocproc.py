@@ -16,22 +16,10 @@ from typing import IO, Final, Self
 
 import yaml
 
+from fastcs_ethercat.loopback import EPICS_LOOPBACK_ENV
+
 READY_PREFIX: Final = "fastcs-ethercat ioc ready:"
 STOP_TIMEOUT_S: Final = 10.0
-
-LOOPBACK_EPICS_ENV: Final = {
-    "EPICS_CA_AUTO_ADDR_LIST": "NO",
-    "EPICS_CA_ADDR_LIST": "127.0.0.1",
-    "EPICS_CAS_INTF_ADDR_LIST": "127.0.0.1",
-    "EPICS_CAS_AUTO_BEACON_ADDR_LIST": "NO",
-    "EPICS_CAS_BEACON_ADDR_LIST": "127.0.0.1",
-    "EPICS_PVA_AUTO_ADDR_LIST": "NO",
-    "EPICS_PVA_ADDR_LIST": "127.0.0.1",
-    "EPICS_PVAS_INTF_ADDR_LIST": "127.0.0.1",
-    "EPICS_PVAS_AUTO_BEACON_ADDR_LIST": "NO",
-    "EPICS_PVAS_BEACON_ADDR_LIST": "127.0.0.1",
-}
-"""Every EPICS process of a benchmark stays on loopback."""
 
 
 _LIST_WITHOUT_SIGINT: Final = (
@@ -50,7 +38,7 @@ class IocProcessError(RuntimeError):
 
 
 def loopback_env() -> dict[str, str]:
-    return {**os.environ, **LOOPBACK_EPICS_ENV}
+    return {**os.environ, **EPICS_LOOPBACK_ENV}
 
 
 def write_ioc_config(

@@ -18,10 +18,10 @@ from typing import Any, Final, TypeVar
 
 from fastcs_ethercat.bench import esi_sections, ioc_sections
 from fastcs_ethercat.bench.context import BenchContext, BenchPlan
-from fastcs_ethercat.bench.iocproc import LOOPBACK_EPICS_ENV
 from fastcs_ethercat.bench.machine import describe_machine
 from fastcs_ethercat.bench.repeater import stop_own_repeaters
 from fastcs_ethercat.bench.report import SCAN_KEYS
+from fastcs_ethercat.loopback import EPICS_LOOPBACK_ENV
 
 SECTIONS: Final = ("esi", "start", "scan", "latency")
 SKIPPED: Final = {"skipped": "section not selected"}
@@ -144,7 +144,7 @@ def run_bench(
 ) -> dict[str, Any]:
     """Run in a fresh scratch directory and loopback-only EPICS environment;
     stop any caRepeater the CA client library started."""
-    for variable, value in LOOPBACK_EPICS_ENV.items():
+    for variable, value in EPICS_LOOPBACK_ENV.items():
         os.environ[variable] = value
     with tempfile.TemporaryDirectory(prefix="fastcs-ethercat-bench-") as scratch:
         context = context_for(Path(scratch))

@@ -20,22 +20,10 @@ from typing import Annotated, Final
 import typer
 
 from fastcs_ethercat.errors import UserError
+from fastcs_ethercat.loopback import EPICS_LOOPBACK_ENV
 
 DEMO_CONFIG: Final = Path("ioc") / "demo.yaml"
 DEMO_CHAIN: Final = Path("ioc") / "demo-chain.yaml"
-DEMO_EPICS_ENV: Final = {
-    "EPICS_CA_AUTO_ADDR_LIST": "NO",
-    "EPICS_CA_ADDR_LIST": "127.0.0.1",
-    "EPICS_CAS_INTF_ADDR_LIST": "127.0.0.1",
-    "EPICS_CAS_AUTO_BEACON_ADDR_LIST": "NO",
-    "EPICS_CAS_BEACON_ADDR_LIST": "127.0.0.1",
-    "EPICS_PVA_AUTO_ADDR_LIST": "NO",
-    "EPICS_PVA_ADDR_LIST": "127.0.0.1",
-    "EPICS_PVAS_INTF_ADDR_LIST": "127.0.0.1",
-    "EPICS_PVAS_AUTO_BEACON_ADDR_LIST": "NO",
-    "EPICS_PVAS_BEACON_ADDR_LIST": "127.0.0.1",
-}
-"""The demo serves loopback only (unless the environment says otherwise)."""
 
 
 def ioc_command(
@@ -114,7 +102,7 @@ def demo_command(
                 "not found; run the demo from a checkout of fastcs-ethercat",
                 path=needed,
             )
-    for variable, value in DEMO_EPICS_ENV.items():
+    for variable, value in EPICS_LOOPBACK_ENV.items():
         os.environ.setdefault(variable, value)
     listing = Path(tempfile.gettempdir()) / f"fastcs-ethercat-{prefix}-pvs.txt"
     with SimProcess(chain=DEMO_CHAIN) as sim:
