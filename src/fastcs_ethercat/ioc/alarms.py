@@ -37,6 +37,7 @@ from fastcs_ethercat.ioc.fastcs_hooks import (
     endpoints_of,
     set_out_record_alarm,
 )
+from fastcs_ethercat.ioc.publish import pva_time
 
 
 class Severity(IntEnum):
@@ -199,7 +200,6 @@ def _post_pva_alarm(pv: Any, state: AlarmState) -> None:
             timestamp=now,
         )
         return
-    seconds = int(now)
     pv.post(
         {
             "alarm": {
@@ -207,9 +207,6 @@ def _post_pva_alarm(pv: Any, state: AlarmState) -> None:
                 "status": int(pva_status(state.status)),
                 "message": state.pva_message(),
             },
-            "timeStamp": {
-                "secondsPastEpoch": seconds,
-                "nanoseconds": int((now - seconds) * 1e9),
-            },
+            "timeStamp": pva_time(now),
         }
     )

@@ -5,9 +5,10 @@ time its callback runs and costs ~120 µs (two tasks, reprs for its tracer).
 A poll cycle's values were all read by one ADS request, so they should all
 carry that request's time, and a cycle of thousands of changes must not cost
 a core. `Publisher.publish` therefore sets the attribute's value as
-`update()` would (`fastcs_hooks`) and posts straight to the CA in record
-(softioc `set(..., timestamp=)`, the record kept on device time) and the PVA
-read PV (value, NO_ALARM and the timestamp), then calls any other callback.
+`update()` would and posts straight to the CA in record (kept on device time,
+its processing queued without giving up the GIL) and the PVA read PV (value,
+NO_ALARM and the timestamp), then calls any other callback; `fastcs_hooks`
+knows how.
 
 Alarms are not sticky here either: a published value carries NO_ALARM, as
 one from `update()` does (see `ioc.alarms`, `ioc.health`).
