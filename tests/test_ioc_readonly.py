@@ -53,7 +53,7 @@ COE_PATH = (
     "Device 1 (EtherCAT)^Term 1 (EK1100)^Term 4 (EL3104)"
     "^Coe ai_settings_8000_user_scale_offset"
 )
-REFUSED_CA = "Channel write request failed"
+REFUSED_CA = "Write access denied"
 
 
 @dataclass
@@ -125,6 +125,7 @@ def test_puts_to_outputs_and_coe_are_refused_and_say_why(rig: ReadOnlyRig) -> No
         for name, value in ((DIGITAL_OUT, "1"), (ANALOG_OUT, "1234"), (COE, "55"))
     }
     pva_put = ioc.tool("pvput", pvs[ANALOG_OUT], "4321")
+    access = {name: ioc.tool("cainfo", pvs[name]) for name in pvs}
     after = caget(ioc, *pvs.values())
     descriptions = caget(ioc, *(pv + ".DESC" for pv in pvs.values()))
     readbacks = caget(ioc, *(pvs[name] + "_RBV" for name in (ANALOG_OUT, COE)))
@@ -141,6 +142,9 @@ def test_puts_to_outputs_and_coe_are_refused_and_say_why(rig: ReadOnlyRig) -> No
         assert descriptions[pvs[name] + ".DESC"].startswith(READ_ONLY_MARK.strip())
     assert not descriptions[pvs[INPUT] + ".DESC"].startswith(READ_ONLY_MARK.strip())
     assert readbacks == {}  # read-only outputs have one PV, no setpoint/_RBV pair
+    for name in (DIGITAL_OUT, ANALOG_OUT, COE):  # Phoebus greys these out
+        assert "read, no write" in access[name], access[name]
+    assert "read, write" in access[INPUT]
 
 
 def test_no_ads_write_in_the_whole_run(rig: ReadOnlyRig) -> None:

@@ -15,8 +15,9 @@ Two ways to use it (see ioc/access-example.acf):
   records are restricted and DEFAULT may stay open.
 
 `--read-only` (`AccessSecurity(read_only=True)`) adds an ASG READ_ONLY without
-write rules to the site's ACF (or to an open one) and puts every out record
-in it, so CA clients see each output as read-only and cannot write it.
+write rules to the site's ACF (or to an open one) and puts the records of every
+output and CoE parameter in it (served as plain read records then), so CA
+clients see each as read-only ("read, no write") and cannot write it.
 
 Limit: the ACF governs Channel Access only. FastCS serves PVA through p4p,
 not through the IOC database, so EPICS access security never sees PVA puts.
@@ -125,21 +126,22 @@ def access_security_active() -> bool:
 
 
 def assign_access_group(
-    attributes: Iterable[Attribute[Any, Any]], group: str
+    attributes: Iterable[Attribute[Any, Any]], group: str, *, reads: bool = False
 ) -> list[str]:
-    """Set ASG=`group` on the CA out records of `attributes`; their names.
+    """Set ASG=`group` on the CA out records of `attributes` (and their in
+    records too if `reads`); the records' names.
 
     Only between the CA transport's connect and serve (see module docstring).
-    Attributes without a CA out record (read-only ones) are skipped.
     """
     if _database_loaded():
         raise RuntimeError("ASG fields must be set before the CA database loads")
     names = []
     for attribute in attributes:
-        record = endpoints_of(attribute).ca_out
-        if record is not None:
-            record.ASG = group
-            names.append(str(record))
+        endpoints = endpoints_of(attribute)
+        for record in (endpoints.ca_out, endpoints.ca_in if reads else None):
+            if record is not None:
+                record.ASG = group
+                names.append(str(record))
     return names
 
 
@@ -191,7 +193,7 @@ class AccessSecurity(Transport):
         if self.read_only:
             self._scratch = Path(tempfile.mkdtemp(prefix="fastcs-ethercat-acf-"))
             acf = read_only_acf(acf, self._scratch)
-            group_of = _everything_read_only
+            group_of = _read_only_group_of
         if acf is not None:
             load_access_security(acf)
         if group_of is None:
@@ -200,9 +202,11 @@ class AccessSecurity(Transport):
             for api in root.walk_api():
                 for attribute in api.attributes.values():
                     group = group_of(attribute)
-                    if group is not None:
-                        for name in assign_access_group([attribute], group):
-                            self.assigned[name] = group
+                    if group is None:
+                        continue
+                    reads = group == READ_ONLY_GROUP  # read-only: in records
+                    for name in assign_access_group([attribute], group, reads=reads):
+                        self.assigned[name] = group
 
     async def serve(self) -> None:
         """Nothing to serve: EPICS enforces the rules from iocInit on.
@@ -235,8 +239,20 @@ def access_group_of(attribute: Attribute[Any, Any]) -> str | None:
     return None
 
 
-def _everything_read_only(attribute: Attribute[Any, Any]) -> str:
-    return READ_ONLY_GROUP
+def _read_only_group_of(attribute: Attribute[Any, Any]) -> str | None:
+    """READ_ONLY for whatever a client could write, and for outputs and CoE
+    items that `--read-only` serves as plain reads."""
+    from fastcs.attributes.attr_w import AttrW
+
+    from fastcs_ethercat.ioc.attributes import CoeRef, PointRef
+
+    if isinstance(attribute, AttrW):
+        return READ_ONLY_GROUP
+    ref = attribute.io_ref if attribute.has_io_ref() else None
+    writable = (isinstance(ref, PointRef) and ref.point.writable) or (
+        isinstance(ref, CoeRef) and ref.coe.writable
+    )
+    return READ_ONLY_GROUP if writable else None
 
 
 def _database_loaded() -> bool:

@@ -565,6 +565,7 @@ def serve(
         screens_dir=config.screens_dir,
         screens_title=f"EtherCAT {config.prefix}",
         access_security_file=config.access_security_file,
+        read_only=config.read_only,
     )
     run(
         ioc.tree.root,

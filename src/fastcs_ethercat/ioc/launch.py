@@ -49,6 +49,9 @@ class LaunchOptions:
     """Extra CA record names, full PV -> alias (CA only; PVA has no aliases)."""
     callback_queue_size: int = DEFAULT_CALLBACK_QUEUE_SIZE
     access_security_file: Path | None = None
+    read_only: bool = False
+    """Outputs and CoE parameters served read-only: their records in ASG
+    READ_ONLY (CA clients see "no write")."""
     """ACF loaded at iocInit; outputs get ASG OUTPUTS, CoE parameters COE."""
 
     def __post_init__(self) -> None:
@@ -73,11 +76,15 @@ def build_transports(options: LaunchOptions) -> list[Transport]:
                 epicsca=EpicsCAOptions(aliases=dict(options.ca_aliases)), gui=gui
             )
         )
-        if options.access_security_file is not None:
+        if options.access_security_file is not None or options.read_only:
             from fastcs_ethercat.ioc.access import AccessSecurity, access_group_of
 
             transports.append(
-                AccessSecurity(options.access_security_file, access_group_of)
+                AccessSecurity(
+                    options.access_security_file,
+                    access_group_of,
+                    read_only=options.read_only,
+                )
             )
     if options.pva:
         from fastcs.transports.epics.pva.transport import EpicsPVATransport
