@@ -22,14 +22,15 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from p4p.client.thread import Context
 
-from tests.conftest import loopback_env
+from fastcs_ethercat.sim.process import SimProcess
+from tests.conftest import TERMINALS_DIR, loopback_env
 
 BIN = Path(sys.executable).parent
 START_TIMEOUT = 90.0
@@ -242,3 +243,54 @@ def wait_for(check: Callable[[], Any], timeout: float = 10.0) -> Any:
 def parse_fields(text: str) -> dict[str, Any]:
     """`key=value` words of a line."""
     return dict(item.split("=", 1) for item in text.split() if "=" in item)
+
+
+IOC_COMMAND: tuple[str, ...] = (sys.executable, "-m", "fastcs_ethercat", "ioc")
+SELECTED_COE_OBJECT = "ai_settings_8000"
+"""EL3104's `AI Settings` (0x8000): the CoE object test IOCs serve."""
+
+
+def terminals_with_coe(target: Path, leave_out: Sequence[str] = ()) -> Path:
+    """A copy of the repository's terminal YAML in `target` with EL3104's
+    `SELECTED_COE_OBJECT` selected (the shipped files select no CoE), and
+    without the types in `leave_out` (served by the generic controller)."""
+    target.mkdir()
+    unselected = f"    fastcs_name: {SELECTED_COE_OBJECT}\n    selected: false\n"
+    for path in TERMINALS_DIR.glob("*.yaml"):
+        if path.stem in leave_out:
+            continue
+        text = path.read_text(encoding="utf-8")
+        if path.stem == "EL3104":
+            assert unselected in text
+            text = text.replace(unselected, unselected.replace("false", "true"))
+        (target / path.name).write_text(text, encoding="utf-8")
+    return target
+
+
+@contextlib.contextmanager
+def served_ioc(
+    stem: str,
+    chain: Path,
+    write_config: Callable[[SimProcess, str], Path],
+    *flags: str,
+    sim_shares_ioc_env: bool = True,
+) -> Iterator[tuple[SimProcess, IocProcess]]:
+    """A simulator of `chain` and an IOC against it (prefix `stem` + token),
+    ready; the IOC stopped (and everything carrying its token) afterwards.
+
+    `sim_shares_ioc_env=False` keeps the simulator out of the IOC's token, so
+    it outlives the IOC (to read its counters after the IOC stopped).
+    """
+    token = new_token()
+    env = ioc_env(token)
+    prefix = f"{stem}{token[:6].upper()}"
+    sim_env = env if sim_shares_ioc_env else None
+    with SimProcess(chain=chain, terminals=TERMINALS_DIR, env=sim_env) as sim:
+        config = write_config(sim, prefix)
+        command = [*IOC_COMMAND, "--config", str(config), *flags]
+        ioc = start_ioc(command, prefix, env, token)
+        try:
+            ioc.wait_for_line("ioc ready", START_TIMEOUT)
+            yield sim, ioc
+        finally:
+            ioc.stop()

@@ -31,6 +31,7 @@ from fastcs_ethercat.ioc.plan import CoePoint
 from fastcs_ethercat.sim.process import SimProcess
 from tests.conftest import REPO_ROOT, TERMINALS_DIR
 from tests.ioc_support import (
+    IOC_COMMAND,
     START_TIMEOUT,
     IocProcess,
     aioca_get,
@@ -39,10 +40,10 @@ from tests.ioc_support import (
     new_token,
     start_ioc,
     stop_pid,
+    terminals_with_coe,
     wait_for,
 )
 
-IOC_COMMAND = (sys.executable, "-m", "fastcs_ethercat", "ioc")
 DEMO_CHAIN = REPO_ROOT / "ioc" / "demo-chain.yaml"
 MISSING_TYPE = "EL3202"  # Term 10: served by the generic controller
 COMPACT = "ETH1:RIO1:MOD5"  # Term 5 (EL3104) in its Compact PDOs
@@ -79,22 +80,6 @@ class Demo:
         return names[0]
 
 
-def _terminals_copy(target: Path) -> Path:
-    target.mkdir()
-    for path in TERMINALS_DIR.glob("*.yaml"):
-        if path.stem == MISSING_TYPE:
-            continue
-        text = path.read_text(encoding="utf-8")
-        if path.stem == "EL3104":
-            text = text.replace(
-                "fastcs_name: ai_settings_8000\n    selected: false",
-                "fastcs_name: ai_settings_8000\n    selected: true",
-            )
-            assert "ai_settings_8000\n    selected: true" in text
-        (target / path.name).write_text(text, encoding="utf-8")
-    return target
-
-
 def _list_pvs(config: Path, env: dict[str, str]) -> list[str]:
     done = subprocess.run(
         [*IOC_COMMAND, "--config", str(config), "--list-pvs"],
@@ -123,7 +108,9 @@ def demo(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Demo]:
                     "target": sim.pyads_ip,
                     "ams_net_id": sim.net_id,
                     "poll_rate_hz": 20,
-                    "terminal_dirs": [str(_terminals_copy(work / "terminals"))],
+                    "terminal_dirs": [
+                        str(terminals_with_coe(work / "terminals", [MISSING_TYPE]))
+                    ],
                     "screens_dir": str(screens),
                 }
             )

@@ -9,8 +9,6 @@ expected severity. The figures are printed (run with `-s` to see them).
 
 from __future__ import annotations
 
-import shutil
-import sys
 import threading
 import time
 from collections.abc import Iterator
@@ -38,16 +36,13 @@ from fastcs_ethercat.ioc.poller import check_write
 from fastcs_ethercat.sim.process import SimProcess
 from tests.conftest import REPO_ROOT, TERMINALS_DIR
 from tests.ioc_support import (
-    START_TIMEOUT,
     IocProcess,
     caget,
-    ioc_env,
-    new_token,
-    start_ioc,
+    served_ioc,
+    terminals_with_coe,
     wait_for,
 )
 
-IOC_COMMAND = (sys.executable, "-m", "fastcs_ethercat", "ioc")
 DEMO_CHAIN = REPO_ROOT / "ioc" / "demo-chain.yaml"
 INVALID = 3
 SINE = "ETH1:RIO1:MOD5:AICompactCh1"  # Term 5 (EL3104): moves all the time
@@ -61,8 +56,6 @@ COE_PATH = (
     "Device 1 (EtherCAT)^Term 21 (EK1122)^Term 22 (EL3104)"
     "^Coe ai_settings_8000_user_scale_offset"
 )
-COE_OBJECT = "ai_settings_8000"
-"""The CoE object the rig's EL3104 YAML selects (both EL3104s serve it)."""
 LOSS_LIMIT_S = 1.0
 """Loss to INVALID with COMM: issue 5 asks for 1 s."""
 RECOVERY_LIMIT_S = 5.0
@@ -177,22 +170,6 @@ class Rig:
         )
 
 
-def _terminals_with_coe(work: Path) -> Path:
-    """The repository's terminal YAML, with the EL3104's CoE object
-    `COE_OBJECT` selected (the shipped files select no CoE)."""
-    terminals = work / "terminals"
-    shutil.copytree(TERMINALS_DIR, terminals)
-    el3104 = terminals / "EL3104.yaml"
-    text = el3104.read_text(encoding="utf-8")
-    unselected = f"    fastcs_name: {COE_OBJECT}\n    selected: false\n"
-    assert unselected in text
-    el3104.write_text(
-        text.replace(unselected, unselected.replace("false", "true")),
-        encoding="utf-8",
-    )
-    return terminals
-
-
 def _config(work: Path, sim: SimProcess, prefix: str) -> Path:
     config = work / "ioc.yaml"
     config.write_text(
@@ -202,7 +179,7 @@ def _config(work: Path, sim: SimProcess, prefix: str) -> Path:
                 "target": sim.pyads_ip,
                 "ams_net_id": sim.net_id,
                 "poll_rate_hz": 20,
-                "terminal_dirs": [str(_terminals_with_coe(work))],
+                "terminal_dirs": [str(terminals_with_coe(work / "terminals"))],
                 "pv_aliases": {COE_PATH: "CoeOffset"},
             }
         )
@@ -212,38 +189,33 @@ def _config(work: Path, sim: SimProcess, prefix: str) -> Path:
 
 @pytest.fixture(scope="module")
 def rig(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Rig]:
-    token = new_token()
-    env = ioc_env(token)
-    prefix = f"FLT{token[:6].upper()}"
     work = tmp_path_factory.mktemp("faults")
-    with SimProcess(chain=DEMO_CHAIN, terminals=TERMINALS_DIR, env=env) as sim:
-        config = _config(work, sim, prefix)
-        ioc = start_ioc([*IOC_COMMAND, "--config", str(config)], prefix, env, token)
-        try:
-            ioc.wait_for_line("ioc ready", START_TIMEOUT)
-            watch = Watch()
-            with ioc.p4p_context() as context:
-                names = [
-                    ioc.pv(name) for name in (SINE, STEADY, NEIGHBOUR, NEIGHBOUR_STATUS)
-                ] + [ioc.pv(COE + "_RBV")]
-                subscriptions = [
-                    context.monitor(name, watch.callback(name)) for name in names
-                ]
-                rig = Rig(sim, ioc, watch, {}, work=work)
-                assert wait_for(lambda: rig.root("Connected") == "True", 30)
-                try:
-                    yield rig
-                finally:
-                    for subscription in subscriptions:
-                        subscription.close()
-                    for replaced in rig.replaced:
-                        replaced.__exit__(None, None, None)
-            print(
-                "\nfault figures (s): "
-                + ", ".join(f"{k}={v:.2f}" for k, v in rig.figures.items())
-            )
-        finally:
-            ioc.stop()
+
+    def config(sim: SimProcess, prefix: str) -> Path:
+        return _config(work, sim, prefix)
+
+    with served_ioc("FLT", DEMO_CHAIN, config) as (sim, ioc):
+        watch = Watch()
+        with ioc.p4p_context() as context:
+            names = [
+                ioc.pv(name) for name in (SINE, STEADY, NEIGHBOUR, NEIGHBOUR_STATUS)
+            ] + [ioc.pv(COE + "_RBV")]
+            subscriptions = [
+                context.monitor(name, watch.callback(name)) for name in names
+            ]
+            rig = Rig(sim, ioc, watch, {}, work=work)
+            assert wait_for(lambda: rig.root("Connected") == "True", 30)
+            try:
+                yield rig
+            finally:
+                for subscription in subscriptions:
+                    subscription.close()
+                for replaced in rig.replaced:
+                    replaced.__exit__(None, None, None)
+        print(
+            "\nfault figures (s): "
+            + ", ".join(f"{k}={v:.2f}" for k, v in rig.figures.items())
+        )
 
 
 @pytest.fixture(autouse=True)

@@ -10,8 +10,6 @@ has counted no Write, no WriteControl and no sum write at all.
 
 from __future__ import annotations
 
-import shutil
-import sys
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,14 +19,11 @@ import yaml
 
 from fastcs_ethercat.ioc.attributes import READ_ONLY_MARK
 from fastcs_ethercat.sim.process import SimProcess
-from tests.conftest import TERMINALS_DIR
 from tests.ioc_support import (
-    START_TIMEOUT,
     IocProcess,
     caget,
-    ioc_env,
-    new_token,
-    start_ioc,
+    served_ioc,
+    terminals_with_coe,
     wait_for,
 )
 
@@ -65,54 +60,31 @@ class ReadOnlyRig:
         return self.ioc.pv(name)
 
 
-def _terminals_with_coe(work: Path) -> Path:
-    """The repository's terminal YAML with the EL3104's CoE object 0x8000
-    selected, so a CoE parameter is served too."""
-    terminals = work / "terminals"
-    shutil.copytree(TERMINALS_DIR, terminals)
-    el3104 = terminals / "EL3104.yaml"
-    text = el3104.read_text(encoding="utf-8")
-    unselected = "    fastcs_name: ai_settings_8000\n    selected: false\n"
-    assert unselected in text
-    el3104.write_text(
-        text.replace(unselected, unselected.replace("false", "true")),
-        encoding="utf-8",
-    )
-    return terminals
-
-
 @pytest.fixture(scope="module")
 def rig(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ReadOnlyRig]:
     work = tmp_path_factory.mktemp("readonly")
-    token = new_token()
-    env = ioc_env(token)
-    prefix = f"RO{token[:6].upper()}"
     chain = work / "chain.yaml"
     chain.write_text(CHAIN)
-    # Not in the IOC's environment: stopping the IOC (by its token) must
-    # leave the simulator up for the final count.
-    with SimProcess(chain=chain, terminals=TERMINALS_DIR) as sim:
-        config = work / "ioc.yaml"
-        config.write_text(
-            yaml.safe_dump(
-                {
-                    "prefix": prefix,
-                    "target": sim.pyads_ip,
-                    "ams_net_id": sim.net_id,
-                    "terminal_dirs": [str(_terminals_with_coe(work))],
-                    "pv_aliases": {COE_PATH: "CoeOffset"},
-                }
-            )
-        )
-        command = [sys.executable, "-m", "fastcs_ethercat", "ioc"]
-        ioc = start_ioc(
-            [*command, "--config", str(config), "--read-only"], prefix, env, token
-        )
-        try:
-            ioc.wait_for_line("ioc ready", START_TIMEOUT)
-            yield ReadOnlyRig(sim, ioc)
-        finally:
-            ioc.stop()
+
+    def config(sim: SimProcess, prefix: str) -> Path:
+        path = work / "ioc.yaml"
+        settings = {
+            "prefix": prefix,
+            "target": sim.pyads_ip,
+            "ams_net_id": sim.net_id,
+            "terminal_dirs": [str(terminals_with_coe(work / "terminals"))],
+            "pv_aliases": {COE_PATH: "CoeOffset"},
+        }
+        path.write_text(yaml.safe_dump(settings))
+        return path
+
+    # The simulator outside the IOC's token: stopping the IOC must leave it
+    # up for the final count.
+    with served_ioc("RO", chain, config, "--read-only", sim_shares_ioc_env=False) as (
+        sim,
+        ioc,
+    ):
+        yield ReadOnlyRig(sim, ioc)
 
 
 def test_puts_to_outputs_and_coe_are_refused_and_say_why(rig: ReadOnlyRig) -> None:

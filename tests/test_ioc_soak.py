@@ -9,7 +9,6 @@ descriptors, threads and memory have not grown with the number of outages.
 from __future__ import annotations
 
 import os
-import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -17,8 +16,7 @@ from typing import Any
 import pytest
 
 from fastcs_ethercat.sim.process import SimProcess
-from tests.conftest import TERMINALS_DIR
-from tests.ioc_support import START_TIMEOUT, ioc_env, new_token, start_ioc, wait_for
+from tests.ioc_support import served_ioc, wait_for
 from tests.test_ioc_faults import (
     DEMO_CHAIN,
     INVALID,
@@ -29,7 +27,6 @@ from tests.test_ioc_faults import (
     _config,
 )
 
-IOC_COMMAND = (sys.executable, "-m", "fastcs_ethercat", "ioc")
 SOAK_SECONDS = float(os.environ.get("FASTCS_ETHERCAT_SOAK_SECONDS", "45"))
 """45 s in the suite; set the variable to soak longer by hand."""
 FAULTS: list[tuple[str, dict[str, Any], float]] = [
@@ -61,76 +58,68 @@ def _writes(sim: SimProcess) -> int:
 
 @pytest.mark.slow
 def test_soak_faults_monitor_and_writes(tmp_path: Path) -> None:
-    token = new_token()
-    env = ioc_env(token)
-    prefix = f"SOAK{token[:6].upper()}"
-    with SimProcess(chain=DEMO_CHAIN, terminals=TERMINALS_DIR, env=env) as sim:
-        config = _config(tmp_path, sim, prefix)
-        ioc = start_ioc([*IOC_COMMAND, "--config", str(config)], prefix, env, token)
-        try:
-            ioc.wait_for_line("ioc ready", START_TIMEOUT)
-            watch = Watch()
-            with ioc.p4p_context() as context:
-                subscription = context.monitor(
-                    ioc.pv(SINE), watch.callback(ioc.pv(SINE))
-                )
-                sine = ioc.pv(SINE)
-                rig = Rig(sim, ioc, watch, {})
-                assert rig.all_back(30)
-                out = ioc.pv("ETH1:RIO21:MOD24:AOOutputsCh3")
-                before = _resources(ioc.process.pid)
-                accepted: list[int] = []
-                held: list[tuple[str, bool, Any]] = []
-                """What the target held after each outage, before the next write."""
-                ads_writes: list[int] = []
-                """ADS Writes counted per accepted write (the simulator's counters
-                restart with its server: 0 can show up, 2 never may)."""
-                refused_applied: list[int] = []
-                rss: list[int] = []
-                """Resident kB after each outage."""
-                outages = 0
-                value = 100
-                deadline = time.monotonic() + SOAK_SECONDS
-                while time.monotonic() < deadline:
-                    kind, params, hold = FAULTS[outages % len(FAULTS)]
-                    version = rig.root("SymbolVersion")
-                    start = time.monotonic()
-                    sim.add_fault(kind, **params)
-                    if kind == "online_change":
-                        noticed = wait_for(
-                            lambda v=version: rig.root("SymbolVersion") != v, 10
-                        )
-                    else:
-                        noticed = wait_for(
-                            lambda t=start: watch.first(sine, t, INVALID), 10
-                        )
-                    assert noticed, kind
-                    tried = False
-                    if kind in REFUSING and rig.root("ConnectionState") != "CONNECTED":
-                        value += 1
-                        ioc.tool("caput", out, str(value))
-                        refused_applied.append(value)
-                        tried = True
-                    time.sleep(max(0.0, hold - (time.monotonic() - start)))
-                    cleared = time.monotonic()
-                    sim.clear_faults()
-                    assert rig.all_back(), (kind, rig.root("LastError"))
-                    assert wait_for(lambda t=cleared: watch.first(sine, t, 0), 10)
-                    held.append((kind, tried, sim.get_symbol(OUTPUT)))
+    def config(sim: SimProcess, prefix: str) -> Path:
+        return _config(tmp_path, sim, prefix)
+
+    with served_ioc("SOAK", DEMO_CHAIN, config) as (sim, ioc):
+        watch = Watch()
+        with ioc.p4p_context() as context:
+            subscription = context.monitor(ioc.pv(SINE), watch.callback(ioc.pv(SINE)))
+            sine = ioc.pv(SINE)
+            rig = Rig(sim, ioc, watch, {})
+            assert rig.all_back(30)
+            out = ioc.pv("ETH1:RIO21:MOD24:AOOutputsCh3")
+            before = _resources(ioc.process.pid)
+            accepted: list[int] = []
+            held: list[tuple[str, bool, Any]] = []
+            """What the target held after each outage, before the next write."""
+            ads_writes: list[int] = []
+            """ADS Writes counted per accepted write (the simulator's counters
+            restart with its server: 0 can show up, 2 never may)."""
+            refused_applied: list[int] = []
+            rss: list[int] = []
+            """Resident kB after each outage."""
+            outages = 0
+            value = 100
+            deadline = time.monotonic() + SOAK_SECONDS
+            while time.monotonic() < deadline:
+                kind, params, hold = FAULTS[outages % len(FAULTS)]
+                version = rig.root("SymbolVersion")
+                start = time.monotonic()
+                sim.add_fault(kind, **params)
+                if kind == "online_change":
+                    noticed = wait_for(
+                        lambda v=version: rig.root("SymbolVersion") != v, 10
+                    )
+                else:
+                    noticed = wait_for(
+                        lambda t=start: watch.first(sine, t, INVALID), 10
+                    )
+                assert noticed, kind
+                tried = False
+                if kind in REFUSING and rig.root("ConnectionState") != "CONNECTED":
                     value += 1
-                    counted = _writes(sim)
-                    put = ioc.tool("caput", out, str(value))
-                    landed = wait_for(lambda v=value: sim.get_symbol(OUTPUT) == v, 10)
-                    assert landed, (kind, put, "".join(ioc.output[-10:]))
-                    ads_writes.append(_writes(sim) - counted)
-                    accepted.append(value)
-                    outages += 1
-                    rss.append(_resources(ioc.process.pid)[2])
-                after = _resources(ioc.process.pid)
-                moving = watch.count_since(ioc.pv(SINE), time.monotonic() - 2)
-                subscription.close()
-        finally:
-            ioc.stop()
+                    ioc.tool("caput", out, str(value))
+                    refused_applied.append(value)
+                    tried = True
+                time.sleep(max(0.0, hold - (time.monotonic() - start)))
+                cleared = time.monotonic()
+                sim.clear_faults()
+                assert rig.all_back(), (kind, rig.root("LastError"))
+                assert wait_for(lambda t=cleared: watch.first(sine, t, 0), 10)
+                held.append((kind, tried, sim.get_symbol(OUTPUT)))
+                value += 1
+                counted = _writes(sim)
+                put = ioc.tool("caput", out, str(value))
+                landed = wait_for(lambda v=value: sim.get_symbol(OUTPUT) == v, 10)
+                assert landed, (kind, put, "".join(ioc.output[-10:]))
+                ads_writes.append(_writes(sim) - counted)
+                accepted.append(value)
+                outages += 1
+                rss.append(_resources(ioc.process.pid)[2])
+            after = _resources(ioc.process.pid)
+            moving = watch.count_since(ioc.pv(SINE), time.monotonic() - 2)
+            subscription.close()
     print(
         f"\nsoak: {outages} outages, {len(accepted)} writes, held {held},"
         f" fds {before[0]}->{after[0]}, threads {before[1]}->{after[1]},"
