@@ -1,4 +1,5 @@
-"""Shared test helpers: where things are, and the loopback-only EPICS env."""
+"""Shared test helpers: where things are, the loopback-only EPICS env, and the
+session's guards (`tests/session_guards.py`)."""
 
 from __future__ import annotations
 
@@ -8,6 +9,13 @@ from pathlib import Path
 import pytest
 
 from fastcs_ethercat.loopback import EPICS_LOOPBACK_ENV as LOOPBACK
+from tests.session_guards import pytest_configure as pytest_configure
+from tests.session_guards import pytest_fixture_setup as pytest_fixture_setup
+from tests.session_guards import pytest_runtest_makereport as pytest_runtest_makereport
+from tests.session_guards import pytest_runtest_protocol as pytest_runtest_protocol
+from tests.session_guards import pytest_sessionfinish as pytest_sessionfinish
+from tests.session_guards import pytest_terminal_summary as pytest_terminal_summary
+from tests.session_guards import pytest_unconfigure as pytest_unconfigure
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 TERMINALS_DIR = REPO_ROOT / "terminals"
