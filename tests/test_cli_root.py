@@ -5,7 +5,11 @@ from __future__ import annotations
 import subprocess
 import sys
 
+import pytest
+
 from fastcs_ethercat import __version__
+
+pytestmark = pytest.mark.e2e
 
 
 def test_version_flag_prints_version() -> None:

@@ -11,8 +11,12 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from tests.conftest import REPO_ROOT
 from tests.ioc_support import caget, ioc_env, new_token, start_ioc
+
+pytestmark = pytest.mark.e2e
 
 IOC = (sys.executable, "-m", "fastcs_ethercat")
 

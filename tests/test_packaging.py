@@ -33,6 +33,7 @@ def test_dockerfile_is_multistage_nonroot_with_entrypoint() -> None:
     assert any("pip install" in run for run in _dockerfile_runs("runtime"))
 
 
+@pytest.mark.e2e
 @pytest.mark.slow
 def test_wheel_installs_into_fresh_venv_and_runs(tmp_path: Path) -> None:
     dist = tmp_path / "dist"

@@ -2,7 +2,8 @@
 
 `run_cli` runs the real `fastcs-ethercat` entry point in-process (argv,
 stdout, stderr and the exit code as a user would see them); `ESI` and
-`FIXTURE` are the real Beckhoff files and the EL3356-0010 fixture.
+`FIXTURE` are the real Beckhoff files (the devices the tests use, cut from
+them) and the EL3356-0010 fixture.
 """
 
 from __future__ import annotations
@@ -17,11 +18,11 @@ from pathlib import Path
 
 from fastcs_ethercat.cli import app
 from fastcs_ethercat.esi.catalog import EsiCatalog, build_catalog
+from tests.conftest import EL3356_FIXTURE as FIXTURE
+from tests.conftest import ESI_SUBSET as ESI
+from tests.conftest import TERMINALS_DIR
 
-REPO = Path(__file__).resolve().parents[1]
-ESI = REPO / ".." / "shared" / "esi"
-FIXTURE = REPO / "tests" / "data" / "esi" / "EL3356-0010-fixture.xml"
-TERMINALS = REPO / "terminals"
+TERMINALS = TERMINALS_DIR
 ESI_ARGS = ["--esi", str(ESI), "--esi", str(FIXTURE)]
 
 DLS_TYPES = [
@@ -86,5 +87,5 @@ def cache_home(path: Path) -> Iterator[None]:
 
 
 def real_catalog() -> EsiCatalog:
-    """The catalog of the shared ESI files plus the EL3356-0010 fixture."""
+    """The catalog of the real ESI files plus the EL3356-0010 fixture."""
     return build_catalog([ESI, FIXTURE], use_cache=False)
