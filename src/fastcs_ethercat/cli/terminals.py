@@ -28,6 +28,7 @@ from rich.progress import (
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.esi.catalog import EsiCatalog
 from fastcs_ethercat.esi.model import CatalogEntry, EsiDevice, parse_esi_int
+from fastcs_ethercat.terminals.catio_import import import_catio, read_catio_file
 from fastcs_ethercat.terminals.esi_sources import (
     VENDOR_ZIP_URL,
     cached_zip,
@@ -35,7 +36,6 @@ from fastcs_ethercat.terminals.esi_sources import (
     open_catalog,
 )
 from fastcs_ethercat.terminals.files import (
-    CATIO_LAYOUT_KEY,
     read_terminal_file,
     terminal_file_name,
     terminal_file_text,
@@ -358,11 +358,6 @@ def regenerate(
     written = 0
     with _progress("regenerating", total) as progress:
         for path, types in files.items():
-            if not _our_layout(path):
-                raise UserError(
-                    "catio-terminals layout: `terminals import` converts it",
-                    path=path,
-                )
             merged_types: dict[str, TerminalType] = {}
             for name, old in types.items():
                 _advance(progress, name)
@@ -427,14 +422,6 @@ def _regenerate_one(
     return merged, report, choice.note
 
 
-def _our_layout(path: Path) -> bool:
-    """False for catio-terminals' single-file layout (`terminal_types:`)."""
-    return not any(
-        line.startswith(f"{CATIO_LAYOUT_KEY}:")
-        for line in path.read_text(encoding="utf-8").splitlines()
-    )
-
-
 FileArgument = Annotated[
     Path, typer.Argument(metavar="FILE", help="Terminal YAML file.")
 ]
@@ -450,11 +437,6 @@ def _edit_file(
 ) -> tuple[str, TerminalType]:
     """Apply `edit` to one type of a file and save it (comments kept)."""
     types = read_terminal_file(file)
-    if not _our_layout(file):
-        raise UserError(
-            "catio-terminals layout: convert it with `terminals import` first",
-            path=file,
-        )
     name = _one_type(types, type_name, file)
     try:
         changed = edit(types[name])
@@ -531,6 +513,50 @@ def coe_command(
     typer.echo(f"{name}: {len(on)} of {len(changed.coe_objects)} CoE objects selected")
 
 
+@terminals_app.command("import")
+def import_command(
+    file: Annotated[
+        Path, typer.Argument(metavar="FILE", help="catio-terminals terminal_types.yaml")
+    ],
+    out: Annotated[Path, typer.Option("--out", help="Directory for the YAML files.")],
+    esi: EsiOption = None,
+    force: Annotated[
+        bool, typer.Option("--force", help="Overwrite existing files.")
+    ] = False,
+) -> None:
+    """Convert a catio-terminals file: every type is generated from the ESI of
+    its own identity and takes over catio's selections and fastcs_names;
+    every node or choice that cannot be placed is named."""
+    located, types = read_catio_file(file)
+    catalog = _catalog(esi)
+    out.mkdir(parents=True, exist_ok=True)
+    failed: list[str] = []
+    unplaced = 0
+    for result in import_catio(located, types, catalog):
+        for problem in result.problems:
+            typer.echo(f"warning: {file}: {result.type_name}: {problem}", err=True)
+        if result.terminal is None:
+            failed.append(result.type_name)
+            continue
+        unplaced += len(result.problems)
+        path = out / terminal_file_name(result.type_name)
+        if path.exists() and not force:
+            typer.echo(f"warning: {path} exists (--force overwrites it)", err=True)
+            failed.append(result.type_name)
+            continue
+        path.write_text(
+            terminal_file_text({result.type_name: result.terminal}), encoding="utf-8"
+        )
+        typer.echo(f"wrote {path} ({result.type_name})")
+    write_schema(out)
+    typer.echo(
+        f"imported {len(types) - len(failed)} of {len(types)} types; "
+        f"{unplaced} nodes or choices could not be placed"
+    )
+    if failed:
+        raise UserError(f"not imported: {', '.join(failed)}", path=file)
+
+
 def _one_type(types: dict[str, TerminalType], wanted: str | None, file: Path) -> str:
     if wanted is not None:
         if wanted not in types:
@@ -550,7 +576,7 @@ def check(
         list[str], typer.Argument(metavar="PATH...", help="YAML files, dirs or globs.")
     ],
 ) -> None:
-    """Validate terminal YAML files (either layout) and report what they hold."""
+    """Validate terminal YAML files and report how many types they hold."""
     registry = load_terminals(paths)
     typer.echo(f"{len(registry)} terminal types OK")
 

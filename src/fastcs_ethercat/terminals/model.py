@@ -98,8 +98,8 @@ Meaning, for the simulator and the IOC:
   Standard Channel 1`). `channels` is empty for a PDO without a channel; then
   `name_template` has no `{channel}` and `pdo_indices` has one entry.
   Position k of `channels`, `pdo_indices` and every member's `coe` belong
-  together. Empty `pdo_indices` / `coe` mean "not known" (descriptions read
-  from catio-terminals files, which do not record them).
+  together. Empty `pdo_indices` / `coe` mean "not known" (a hand-written
+  description); generated and imported files always have them.
 - `type_name` is the symbol's TwinCAT type: `<PDO name>_TYPE` (a BIGTYPE
   structure) for a PDO with several entries or a nested entry name; the
   entry's own scalar type (`BIT`, `INT`, `UDINT`, ...) for a single-entry PDO.
