@@ -3,8 +3,10 @@
 Commands: list, show, generate, regenerate, select-group, select, coe,
 import, edit, check, schema, update-cache. The choices (select-group,
 select, coe) are the functions of `terminals.selection` the editor calls
-too. Results go to stdout; progress bars go to stderr; user errors are
-raised as `UserError` (one line, exit code 2, printed by the root app).
+too. Modules only some commands need (the comment keeper, catio import, the
+editor) are imported inside them: every `fastcs-ethercat ioc` start imports
+this module. Results go to stdout; progress bars go to stderr; user errors
+are raised as `UserError` (one line, exit code 2, printed by the root app).
 """
 
 from __future__ import annotations
@@ -28,7 +30,6 @@ from rich.progress import (
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.esi.catalog import EsiCatalog
 from fastcs_ethercat.esi.model import CatalogEntry, EsiDevice, parse_esi_int
-from fastcs_ethercat.terminals.catio_import import import_catio, read_catio_file
 from fastcs_ethercat.terminals.esi_sources import (
     VENDOR_ZIP_URL,
     cached_zip,
@@ -45,7 +46,6 @@ from fastcs_ethercat.terminals.loader import load_terminals, terminal_paths
 from fastcs_ethercat.terminals.merge import ChangeReport, merge_terminal
 from fastcs_ethercat.terminals.model import TerminalType
 from fastcs_ethercat.terminals.revisions import regenerate_revision
-from fastcs_ethercat.terminals.saving import save_terminals
 from fastcs_ethercat.terminals.schema import schema_text, write_schema
 from fastcs_ethercat.terminals.selection import (
     SelectionError,
@@ -347,6 +347,8 @@ def regenerate(
 ) -> None:
     """Regenerate every YAML in DIR from ESI, keeping the engineer's choices
     and comments; prints what changed."""
+    from fastcs_ethercat.terminals.saving import save_terminals
+
     paths = terminal_paths([directory])
     files = {path: read_terminal_file(path) for path in paths}
     requested = _type_revisions(revisions or [])
@@ -436,6 +438,8 @@ def _edit_file(
     file: Path, type_name: str | None, edit: Callable[[TerminalType], TerminalType]
 ) -> tuple[str, TerminalType]:
     """Apply `edit` to one type of a file and save it (comments kept)."""
+    from fastcs_ethercat.terminals.saving import save_terminals
+
     types = read_terminal_file(file)
     name = _one_type(types, type_name, file)
     try:
@@ -513,6 +517,41 @@ def coe_command(
     typer.echo(f"{name}: {len(on)} of {len(changed.coe_objects)} CoE objects selected")
 
 
+@terminals_app.command("edit")
+def edit_command(
+    directory: Annotated[
+        Path,
+        typer.Argument(metavar="[DIR]", help="Directory of terminal YAML files."),
+    ] = Path("terminals"),
+    esi: EsiOption = None,
+    target: Annotated[
+        str | None,
+        typer.Option(
+            "--target",
+            metavar="HOST[:PORT]",
+            help="TwinCAT (or the simulator): show each live terminal's PDO group.",
+        ),
+    ] = None,
+    ams_net_id: Annotated[
+        str | None,
+        typer.Option(
+            "--ams-net-id", help="The target's AMS NetId (default: ask it over UDP)."
+        ),
+    ] = None,
+    host: Annotated[
+        str, typer.Option("--host", help="Address to serve on.")
+    ] = "127.0.0.1",
+    port: Annotated[
+        int, typer.Option("--port", help="Port to serve on (0: any free one).")
+    ] = 8080,
+) -> None:
+    """A web editor for the terminal files of DIR: PDO group, symbols, CoE
+    objects, oversampling, names, a diff before saving."""
+    from fastcs_ethercat.editor.server import run_editor
+
+    run_editor(directory, esi, target, host, port, ams_net_id)
+
+
 @terminals_app.command("import")
 def import_command(
     file: Annotated[
@@ -527,6 +566,8 @@ def import_command(
     """Convert a catio-terminals file: every type is generated from the ESI of
     its own identity and takes over catio's selections and fastcs_names;
     every node or choice that cannot be placed is named."""
+    from fastcs_ethercat.terminals.catio_import import import_catio, read_catio_file
+
     located, types = read_catio_file(file)
     catalog = _catalog(esi)
     out.mkdir(parents=True, exist_ok=True)
