@@ -159,11 +159,13 @@ def choose(driver: Any, name: str, text: str) -> None:
     """Pick `text` in the marked select's menu."""
     find(driver, name).click()
 
-    def option(d: Any) -> WebElement | None:
+    def option(d: Any) -> WebElement | bool:
         items = d.find_elements(By.CSS_SELECTOR, ".q-menu .q-item")
-        return next((e for e in items if e.text.strip() == text), None)
+        return next((e for e in items if e.text.strip() == text), False)
 
-    WebDriverWait(driver, 20).until(option).click()
+    found = WebDriverWait(driver, 20).until(option)
+    assert isinstance(found, WebElement)
+    found.click()
 
 
 def checked(element: WebElement) -> bool:
