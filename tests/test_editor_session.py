@@ -57,7 +57,7 @@ def test_search_and_add_from_the_catalog(
         assert [e.type_name for e in session.search("EL3102")] == ["EL3102"]
         added = session.add_type("el3102")
         assert added.name == "EL3102" and (session.directory / "EL3102.yaml").is_file()
-        with pytest.raises(UserError, match="EL3104.yaml exists already"):
+        with pytest.raises(UserError, match=r"EL3104\.yaml exists already"):
             session.add_type("EL3104")
 
 

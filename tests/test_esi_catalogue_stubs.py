@@ -6,7 +6,9 @@ larger than every real one) and give PDOs only by reference (`<TxPdo Ref=...
 Chn=.../>`, no `<Index>`). No such file is among the shared ESI files, so the
 test builds one in that documented shape from real devices: the EK1100 and
 EL1014 descriptions of the shared files, with the placeholder revision, every
-PDO turned into a reference and the CoE dictionary left out.
+PDO turned into a reference and the CoE dictionary left out. Two passive
+devices (no product code, no process data, as end caps and potential feeds
+are described in a full catalogue) are made from the real EK1122 the same way.
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ from .test_terminals_support import ESI, TERMINALS, cache_home, run_cli
 PLACEHOLDER = "#x270b0000"
 STUB_FILE = "Beckhoff EtherCAT Terminals.xml"
 REAL_FILES = ("Beckhoff EK11xx.xml", "Beckhoff EL1xxx.xml")
+PASSIVE = ("EL9011", "EL9080")
 
 
 def _stub(device: etree._Element) -> etree._Element:
@@ -46,6 +49,19 @@ def _stub(device: etree._Element) -> etree._Element:
         pdo.set("Ref", reference)
         pdo.set("Chn", str(channel))
     return stub
+
+
+def _passive(device: etree._Element, name: str) -> etree._Element:
+    """A real device turned into a passive one: no product code, no data."""
+    passive = copy.deepcopy(device)
+    type_element = passive.find("Type")
+    assert type_element is not None
+    type_element.text = name
+    type_element.attrib.pop("ProductCode")
+    for child in list(passive):
+        if child.tag in ("Sm", "TxPdo", "RxPdo", "HideType", "Profile"):
+            passive.remove(child)
+    return passive
 
 
 def _device(path: Path, type_name: str, revision: str) -> etree._Element:
@@ -75,6 +91,9 @@ def esi_folder(tmp_path_factory: pytest.TempPathFactory) -> Path:
         devices.remove(device)
     devices.append(_stub(_device(ESI / REAL_FILES[0], "EK1100", "#x00120000")))
     devices.append(_stub(_device(ESI / REAL_FILES[1], "EL1014", "#x00130000")))
+    for passive_name in PASSIVE:
+        devices.append(_passive(_device(ESI / REAL_FILES[0], "EK1122", "#x00100000"),
+                                passive_name))  # fmt: skip
     etree.ElementTree(root).write(
         str(folder / STUB_FILE), xml_declaration=True, encoding="utf-8"
     )
@@ -98,6 +117,16 @@ def test_the_catalog_knows_the_placeholders(esi_folder: Path) -> None:
     assert 0x270B0000 in ek1100[0x00000000].hides  # ...but the real file hides it
     assert catalog.find("EK1100").revision == 0x00120000
     assert catalog.find("EL1014").revision == 0x00130000
+
+
+def test_passive_devices_are_one_line(esi_folder: Path) -> None:
+    catalog = build_catalog(esi_folder)
+    assert catalog.passive == PASSIVE and catalog.warnings == ()
+    listed = run_cli("terminals", "list", "--esi", str(esi_folder))
+    assert listed.code == 0
+    assert listed.err == (
+        "note: 2 passive devices without a product code left out (EL9011, EL9080)\n"
+    )
 
 
 def test_list_marks_what_does_not_parse(esi_folder: Path) -> None:
@@ -135,8 +164,9 @@ def test_generate_and_show_choose_real_revisions(
     assert "0x270b0000" in shown.out.splitlines()[3]
     stub = run_cli("terminals", "show", "EL1014", "--esi", str(esi_folder),
                    "--revision", "0x270b0000")  # fmt: skip
-    assert stub.code == 2 and stub.err.count("\n") == 1
-    assert "only refers to a PDO" in stub.err
+    assert stub.code == 2
+    error = stub.err.splitlines()[-1]
+    assert error.startswith("error: ") and "only refers to a PDO" in error
 
 
 def test_regenerate_keeps_each_file_in_its_lineage(

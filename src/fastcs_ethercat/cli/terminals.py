@@ -320,8 +320,10 @@ def _generate_one(
             "--force overwrites them",
             path=path,
         )
+    from fastcs_ethercat.terminals.saving import write_whole
+
     terminal = terminal_from_esi(catalog.load(name, entry.revision))
-    path.write_text(terminal_file_text({name: terminal}), encoding="utf-8")
+    write_whole(path, terminal_file_text({name: terminal}))
     return f"wrote {path} ({name} revision 0x{entry.revision:08x})"
 
 
@@ -567,6 +569,7 @@ def import_command(
     its own identity and takes over catio's selections and fastcs_names;
     every node or choice that cannot be placed is named."""
     from fastcs_ethercat.terminals.catio_import import import_catio, read_catio_file
+    from fastcs_ethercat.terminals.saving import write_whole
 
     located, types = read_catio_file(file)
     catalog = _catalog(esi)
@@ -585,9 +588,7 @@ def import_command(
             typer.echo(f"warning: {path} exists (--force overwrites it)", err=True)
             failed.append(result.type_name)
             continue
-        path.write_text(
-            terminal_file_text({result.type_name: result.terminal}), encoding="utf-8"
-        )
+        write_whole(path, terminal_file_text({result.type_name: result.terminal}))
         typer.echo(f"wrote {path} ({result.type_name})")
     write_schema(out)
     typer.echo(

@@ -23,7 +23,11 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.esi.catalog import EsiCatalog
-from fastcs_ethercat.terminals.files import CATIO_LAYOUT_KEY, validation_error
+from fastcs_ethercat.terminals.files import (
+    CATIO_LAYOUT_KEY,
+    read_text,
+    validation_error,
+)
 from fastcs_ethercat.terminals.generate import terminal_from_esi
 from fastcs_ethercat.terminals.model import SymbolMember, SymbolNode, TerminalType
 from fastcs_ethercat.terminals.names import CHANNEL, expand
@@ -114,13 +118,7 @@ def not_importable(located: LocatedYaml) -> UserError:
 
 def read_catio_file(path: Path) -> tuple[LocatedYaml, dict[str, CatioTerminal]]:
     """The validated types of a catio file (unknown keys are errors)."""
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise UserError("no such file", path=path) from None
-    except (OSError, UnicodeDecodeError) as error:
-        raise UserError(f"cannot read: {error}", path=path) from None
-    located = parse_yaml(text, path)
+    located = parse_yaml(read_text(path), path)
     data = located.data
     if not isinstance(data, dict) or CATIO_LAYOUT_KEY not in data:
         raise UserError(

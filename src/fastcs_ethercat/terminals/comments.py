@@ -53,10 +53,21 @@ def _yaml() -> YAML:
 
 
 def has_comments(text: str) -> bool:
-    """Quick test: anything besides the schema header that may be a comment
-    or a blank line (a false positive only costs a round trip)."""
-    body = text.removeprefix(SCHEMA_HEADER)
-    return "#" in body or "\n\n" in body or body.startswith("\n")
+    """Quick test: a comment or blank line besides the schema header.
+
+    A false positive (a `#` inside a quoted value that looks outside) only
+    costs a round trip; it never changes what is written."""
+    for line in text.removeprefix(SCHEMA_HEADER).splitlines():
+        stripped = line.strip()
+        if not stripped or stripped.startswith("#"):
+            return True
+        at = line.find(" #")
+        while at >= 0:
+            before = line[:at]
+            if before.count("'") % 2 == 0 and before.count('"') % 2 == 0:
+                return True
+            at = line.find(" #", at + 1)
+    return False
 
 
 def carry_comments(old_text: str, new_text: str) -> tuple[str, list[DroppedComment]]:

@@ -32,16 +32,20 @@ CATIO_LAYOUT_KEY = "terminal_types"
 _TYPE_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.+-]*$")
 
 
-def read_terminal_file(path: Path | str) -> dict[str, TerminalType]:
-    """Every terminal type in one file, validated."""
-    path = Path(path)
+def read_text(path: Path) -> str:
+    """A YAML file's text, or a one-line `UserError`."""
     try:
-        text = path.read_text(encoding="utf-8")
+        return path.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise UserError("no such file", path=path) from None
     except (OSError, UnicodeDecodeError) as error:
         raise UserError(f"cannot read: {error}", path=path) from None
-    return parse_terminal_text(text, path)
+
+
+def read_terminal_file(path: Path | str) -> dict[str, TerminalType]:
+    """Every terminal type in one file, validated."""
+    path = Path(path)
+    return parse_terminal_text(read_text(path), path)
 
 
 def parse_terminal_text(text: str, path: Path | str) -> dict[str, TerminalType]:

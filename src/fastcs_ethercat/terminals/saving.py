@@ -3,6 +3,7 @@ file's comments kept, and nothing written when nothing changed."""
 
 from __future__ import annotations
 
+import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -43,14 +44,23 @@ def file_text(
     return carry_comments(before, text)
 
 
+def write_whole(path: Path, text: str) -> None:
+    """Write `text` to a temporary file beside `path`, then rename it over
+    `path`: a failure never leaves half a file behind."""
+    temporary = path.with_name(f".{path.name}.tmp")
+    try:
+        temporary.write_text(text, encoding="utf-8")
+        os.replace(temporary, path)
+    except OSError as error:
+        temporary.unlink(missing_ok=True)
+        raise UserError(f"cannot write: {error.strerror or error}", path=path) from None
+
+
 def save_terminals(path: Path, terminals: Mapping[str, TerminalType]) -> SavedFile:
     """Write `terminals` to `path` unless the file already says exactly that."""
     before = old_text(path)
     text, dropped = file_text(terminals, before)
     changed = text != before
     if changed:
-        try:
-            path.write_text(text, encoding="utf-8")
-        except OSError as error:
-            raise UserError(f"cannot write: {error}", path=path) from None
+        write_whole(path, text)
     return SavedFile(path=path, text=text, changed=changed, dropped=dropped)
