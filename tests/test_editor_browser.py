@@ -255,6 +255,7 @@ def _served_pvs(work: Path, folder: Path) -> set[str]:
                         "target": sim.pyads_ip,
                         "ams_net_id": sim.net_id,
                         "terminal_dirs": [str(folder)],
+                        "ads_timeout_ms": 5000,  # a loaded shared machine
                     }
                 ),
                 encoding="utf-8",

@@ -14,6 +14,10 @@ from pathlib import Path
 from fastcs_ethercat.errors import UserError
 
 
+LIVE_TIMEOUT_MS = 5000
+"""One discovery at start: patience costs nothing, a spurious timeout would."""
+
+
 @dataclass(frozen=True)
 class LiveTerminal:
     """One terminal on the target."""
@@ -37,6 +41,7 @@ def read_live_terminals(
         target=target,
         ams_net_id=ams_net_id,
         terminal_dirs=(directory,),
+        ads_timeout_ms=LIVE_TIMEOUT_MS,
     )
 
     async def go() -> list[LiveTerminal]:
