@@ -17,7 +17,7 @@ from fastcs_ethercat.terminals.selection import (
     set_oversampling,
 )
 
-from .test_terminals_support import TERMINALS, run_cli
+from .test_terminals_support import ESI_ARGS, TERMINALS, cache_home, run_cli
 
 
 @pytest.fixture
@@ -106,3 +106,19 @@ def test_names_and_factor_are_validated() -> None:
     assert changed is not None and changed.selected_factor == 20
     with pytest.raises(SelectionError, match="7 is not an offered factor"):
         set_oversampling(el3702, 7)
+
+
+def test_a_sub_index_choice_survives_regenerate(tmp_path: Path) -> None:
+    out = tmp_path / "terminals"
+    with cache_home(tmp_path / "cache"):
+        made = run_cli("terminals", "generate", "EL3104", "--revision", "0x00100000",
+                       *ESI_ARGS, "--out", str(out))  # fmt: skip
+        assert made.code == 0, made.err
+        path = out / "EL3104.yaml"
+        assert run_cli("terminals", "coe", str(path), "0x8020:11").code == 0
+        result = run_cli("terminals", "regenerate", str(out), *ESI_ARGS)
+    assert result.code == 0, result.err
+    terminal = read_terminal_file(path)["EL3104"]
+    assert terminal.identity.revision_number == 0x00110000
+    obj = next(o for o in terminal.coe_objects if o.index == 0x8020)
+    assert obj.selected and [s.subindex for s in obj.sub_items if s.selected] == [0x11]

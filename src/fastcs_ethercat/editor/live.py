@@ -13,7 +13,6 @@ from pathlib import Path
 
 from fastcs_ethercat.errors import UserError
 
-
 LIVE_TIMEOUT_MS = 5000
 """One discovery at start: patience costs nothing, a spurious timeout would."""
 
