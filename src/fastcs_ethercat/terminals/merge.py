@@ -4,8 +4,9 @@ The freshly generated terminal brings the facts (PDOs, types, groups, CoE
 dictionary, identity); the old file brings the choices: `selected` flags of
 symbols, CoE objects and their sub-indices, `selected_pdo_group`, the
 oversampling factor and `fastcs_name`s (renaming an attribute renames PVs).
-A choice that no longer fits (its group is gone, its symbol moved out of the selected group) falls
-back to the generated default and is named in the report.
+A choice that no longer fits (its group is gone, its symbol moved out of the
+selected group) falls back to the generated default and is named in the
+report.
 """
 
 from __future__ import annotations
