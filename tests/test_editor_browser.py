@@ -155,6 +155,21 @@ def wait(check: Callable[[], bool], timeout: float = 20) -> None:
         time.sleep(0.1)
 
 
+def search_for(driver: Any, search: WebElement, type_name: str) -> WebElement:
+    """Type an exact type name in the catalog search: its one "Add" button."""
+    search.send_keys(Keys.CONTROL, "a")
+    search.send_keys(type_name)
+
+    def only(d: Any) -> WebElement | bool:
+        buttons = d.find_elements(By.CSS_SELECTOR, 'button[data-test^="add-"]')
+        names = [b.get_attribute("data-test") for b in buttons]
+        return buttons[0] if names == [f"add-{type_name}"] else False
+
+    found = WebDriverWait(driver, 20).until(only)
+    assert isinstance(found, WebElement)
+    return found
+
+
 def choose(driver: Any, name: str, text: str) -> None:
     """Pick `text` in the marked select's menu."""
     find(driver, name).click()
@@ -179,20 +194,33 @@ def test_editor_session_matches_the_cli_and_the_ioc(
     driver.get(editor)
     find(driver, "open-EL3104")
     assert "1 of 2" in find(driver, "types").text
-    driver.save_screenshot(str(screenshots / "01-types.png"))
+    driver.save_screenshot(str(screenshots / "00-types.png"))
 
     # add a type from the catalog: one that exists is refused next to the field
     search = field(driver, "search")
-    search.send_keys("EL4134")
-    find(driver, "add-EL4134").click()
+    search.send_keys("ana. output")
+    driver.execute_script("arguments[0].scrollIntoView()", find(driver, "add-EL4134"))
+    driver.save_screenshot(str(screenshots / "01-search.png"))
+    search_for(driver, search, "EL4134").click()
     wait(lambda: "exists already" in find(driver, "add-error").text)
-    search.send_keys(Keys.CONTROL, "a")
-    search.send_keys("EL3102")
-    find(driver, "add-EL3102").click()
+    search_for(driver, search, "EL3102").click()
     find(driver, "symbols")
     assert driver.current_url.endswith("/type/EL3102")
     assert (folder / "EL3102.yaml").is_file()
     driver.save_screenshot(str(screenshots / "02-added-EL3102.png"))
+
+    # a type that is not there is a message, not a traceback page
+    driver.get(f"{editor}type/NOPE")
+    assert "no terminal type 'NOPE'" in find(driver, "page-error").text
+
+    # the oversampling factor, then back to the file as it is
+    driver.get(f"{editor}type/EL3702")
+    choose(driver, "factor", "20")
+    wait(lambda: find(driver, "state").text == "unsaved changes")
+    assert "x 20 samples" in find(driver, "symbol-facts-1").text
+    driver.save_screenshot(str(screenshots / "03-EL3702-factor.png"))
+    find(driver, "revert").click()
+    wait(lambda: find(driver, "state").text == "saved")
 
     driver.get(f"{editor}type/EL3104")
     choose(driver, "group", "Compact")
@@ -210,15 +238,15 @@ def test_editor_session_matches_the_cli_and_the_ioc(
     name.send_keys("Bad Name", Keys.TAB)
     wait(lambda: "is not a fastcs_name" in find(driver, "symbol-error-1").text)
     assert "unsaved changes" in find(driver, "state").text
-    driver.save_screenshot(str(screenshots / "03-EL3104-compact.png"))
+    driver.save_screenshot(str(screenshots / "04-EL3104-compact.png"))
 
     find(driver, "review").click()
     diff = find(driver, "diff")
     wait(lambda: "selected_pdo_group: Compact" in diff.text)
-    driver.save_screenshot(str(screenshots / "04-diff.png"))
+    driver.save_screenshot(str(screenshots / "05-diff.png"))
     find(driver, "save").click()
     wait(lambda: find(driver, "state").text == "saved")
-    driver.save_screenshot(str(screenshots / "05-saved.png"))
+    driver.save_screenshot(str(screenshots / "06-saved.png"))
 
     # the same choices from the command line give the same bytes
     by_cli = work / "cli" / "EL3104.yaml"
@@ -301,6 +329,6 @@ def test_target_shows_each_live_terminal_and_a_mismatch(
         assert live.text == (
             "Term 2 (EL3104): runs Compact - the file selects Standard: MISMATCH"
         )
-        driver.save_screenshot(str(screenshots / "06-live-mismatch.png"))
+        driver.save_screenshot(str(screenshots / "07-live-mismatch.png"))
         choose(driver, "group", "Compact")
         wait(lambda: "MISMATCH" not in find(driver, "live-Term 2 (EL3104)").text)

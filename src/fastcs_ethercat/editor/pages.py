@@ -83,6 +83,7 @@ def index_page(session: EditorSession) -> None:
                 "description": terminal.description,
             }
         )
+    _add_type_panel(session)
     table = _test(ui.table(columns=columns, rows=rows, row_key="type"), "types")
     table.classes("w-full")
     table.add_slot(
@@ -91,16 +92,15 @@ def index_page(session: EditorSession) -> None:
         ':data-test="\'open-\' + props.value" class="text-primary">'
         "{{ props.value }}</a></q-td>",
     )
-    _add_type_panel(session)
 
 
 def _add_type_panel(session: EditorSession) -> None:
-    ui.label("Add a type from the ESI catalog").classes("text-lg mt-6")
+    ui.label("Add a type from the ESI catalog").classes("text-lg")
     with ui.row().classes("items-start gap-2"):
         search = _test(ui.input("type, description or group"), "search")
         search.classes("w-96")
     message = _test(ui.label(""), "add-error").classes(ERROR)
-    results = ui.column().classes("gap-1")
+    results = ui.column().classes("gap-1 mb-4")
 
     def add(type_name: str) -> None:
         try:
@@ -143,7 +143,7 @@ def type_page(
         edited = session.get(name)
     except UserError as error:
         _header(session, name)
-        ui.label(str(error)).classes(ERROR)
+        _test(ui.label(str(error)), "page-error").classes(ERROR)
         return
     _header(session, name)
     _TypeView(session, edited, live).build()
@@ -306,13 +306,15 @@ class _TypeView:
         with ui.row().classes("w-full items-start gap-3 border-t pt-1"):
             box = ui.checkbox(node.name_template, value=node.selected)
             _test(box.classes("w-72 font-bold"), f"symbol-{position}")
+            samples = self.terminal.sample_count(node)
             facts = (
                 f"{node.type_name} | {node.bit_size} bit"
-                + (" per sample" if node.oversampled else "")
+                + (f" x {samples} samples" if node.oversampled else "")
                 + f" | channels {','.join(map(str, node.channels)) or '-'}"
                 + f" | {node.access}"
             )
-            ui.label(facts).classes("w-96 text-sm font-mono")
+            label = ui.label(facts).classes("w-96 text-sm font-mono")
+            _test(label, f"symbol-facts-{position}")
             with ui.column().classes("gap-0"):
                 name = ui.input("fastcs_name", value=node.fastcs_name)
                 _test(name.classes("w-64").props("dense"), f"name-{position}")
