@@ -17,7 +17,7 @@ from fastcs_ethercat.terminals.selection import (
     set_oversampling,
 )
 
-from .test_terminals_support import ESI_ARGS, TERMINALS, cache_home, run_cli
+from .test_terminals_support import TERMINALS, regenerated_old_el3104, run_cli
 
 
 @pytest.fixture
@@ -109,14 +109,12 @@ def test_names_and_factor_are_validated() -> None:
 
 
 def test_a_sub_index_choice_survives_regenerate(tmp_path: Path) -> None:
-    out = tmp_path / "terminals"
-    with cache_home(tmp_path / "cache"):
-        made = run_cli("terminals", "generate", "EL3104", "--revision", "0x00100000",
-                       *ESI_ARGS, "--out", str(out))  # fmt: skip
-        assert made.code == 0, made.err
-        path = out / "EL3104.yaml"
+    def select_one_sub_index(path: Path) -> None:
         assert run_cli("terminals", "coe", str(path), "0x8020:11").code == 0
-        result = run_cli("terminals", "regenerate", str(out), *ESI_ARGS)
+
+    path, result = regenerated_old_el3104(
+        tmp_path / "terminals", tmp_path / "cache", select_one_sub_index
+    )
     assert result.code == 0, result.err
     terminal = read_terminal_file(path)["EL3104"]
     assert terminal.identity.revision_number == 0x00110000

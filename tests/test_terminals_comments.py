@@ -10,7 +10,7 @@ import pytest
 from fastcs_ethercat.terminals.comments import carry_comments
 from fastcs_ethercat.terminals.files import read_terminal_file, terminal_file_text
 
-from .test_terminals_support import ESI_ARGS, TERMINALS, cache_home, run_cli
+from .test_terminals_support import TERMINALS, regenerated_old_el3104, run_cli
 
 NOTES = {
     "  identity:\n": "  # EL3104s on BL45P run firmware 0x0011 since 2019\n",
@@ -26,14 +26,12 @@ def annotated(text: str) -> str:
 
 
 def test_regenerate_keeps_comments_of_an_older_revision_file(tmp_path: Path) -> None:
-    out = tmp_path / "terminals"
-    with cache_home(tmp_path / "cache"):
-        made = run_cli("terminals", "generate", "EL3104", "--revision", "0x00100000",
-                       *ESI_ARGS, "--out", str(out))  # fmt: skip
-        assert made.code == 0, made.err
-        path = out / "EL3104.yaml"
+    def annotate(path: Path) -> None:
         path.write_text(annotated(path.read_text(encoding="utf-8")), encoding="utf-8")
-        result = run_cli("terminals", "regenerate", str(out), *ESI_ARGS)
+
+    path, result = regenerated_old_el3104(
+        tmp_path / "terminals", tmp_path / "cache", annotate
+    )
     assert result.code == 0, result.err
     assert "EL3104: 1 identity change" in result.out and "dropped" not in result.out
     text = path.read_text(encoding="utf-8")

@@ -11,7 +11,7 @@ import contextlib
 import io
 import os
 import sys
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -88,3 +88,17 @@ def cache_home(path: Path) -> Iterator[None]:
 def real_catalog() -> EsiCatalog:
     """The catalog of the shared ESI files plus the EL3356-0010 fixture."""
     return build_catalog([ESI, FIXTURE], use_cache=False)
+
+
+def regenerated_old_el3104(
+    folder: Path, cache: Path, edit: Callable[[Path], object]
+) -> tuple[Path, CliResult]:
+    """EL3104 generated at its older revision 0x00100000 into `folder`, edited
+    by `edit(path)`, then regenerated: the file and the regenerate result."""
+    with cache_home(cache):
+        made = run_cli("terminals", "generate", "EL3104", "--revision", "0x00100000",
+                       *ESI_ARGS, "--out", str(folder))  # fmt: skip
+        assert made.code == 0, made.err
+        path = folder / "EL3104.yaml"
+        edit(path)
+        return path, run_cli("terminals", "regenerate", str(folder), *ESI_ARGS)
