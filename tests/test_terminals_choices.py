@@ -17,7 +17,12 @@ from fastcs_ethercat.terminals.selection import (
     set_oversampling,
 )
 
-from .test_terminals_support import TERMINALS, regenerated_old_el3104, run_cli
+from .test_terminals_support import (
+    TERMINALS,
+    needs_esi,
+    regenerated_old_el3104,
+    run_cli,
+)
 
 
 @pytest.fixture
@@ -108,6 +113,7 @@ def test_names_and_factor_are_validated() -> None:
         set_oversampling(el3702, 7)
 
 
+@needs_esi
 def test_a_sub_index_choice_survives_regenerate(tmp_path: Path) -> None:
     def select_one_sub_index(path: Path) -> None:
         assert run_cli("terminals", "coe", str(path), "0x8020:11").code == 0

@@ -10,7 +10,12 @@ import pytest
 from fastcs_ethercat.terminals.comments import carry_comments
 from fastcs_ethercat.terminals.files import read_terminal_file, terminal_file_text
 
-from .test_terminals_support import TERMINALS, regenerated_old_el3104, run_cli
+from .test_terminals_support import (
+    TERMINALS,
+    needs_esi,
+    regenerated_old_el3104,
+    run_cli,
+)
 
 NOTES = {
     "  identity:\n": "  # EL3104s on BL45P run firmware 0x0011 since 2019\n",
@@ -25,6 +30,7 @@ def annotated(text: str) -> str:
     return text.replace(*TRAILING, 1)
 
 
+@needs_esi
 def test_regenerate_keeps_comments_of_an_older_revision_file(tmp_path: Path) -> None:
     def annotate(path: Path) -> None:
         path.write_text(annotated(path.read_text(encoding="utf-8")), encoding="utf-8")

@@ -15,6 +15,8 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
+import pytest
+
 from fastcs_ethercat.cli import app
 from fastcs_ethercat.esi.catalog import EsiCatalog, build_catalog
 
@@ -23,6 +25,9 @@ ESI = REPO / ".." / "shared" / "esi"
 FIXTURE = REPO / "tests" / "data" / "esi" / "EL3356-0010-fixture.xml"
 TERMINALS = REPO / "terminals"
 ESI_ARGS = ["--esi", str(ESI), "--esi", str(FIXTURE)]
+needs_esi = pytest.mark.skipif(
+    not ESI.is_dir(), reason="needs the shared Beckhoff ESI files (../shared/esi)"
+)
 
 DLS_TYPES = [
     "EK1100",
