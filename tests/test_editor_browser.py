@@ -46,6 +46,7 @@ if not ESI.is_dir():
     )
 
 from selenium import webdriver  # noqa: E402
+from selenium.common.exceptions import StaleElementReferenceException  # noqa: E402
 from selenium.webdriver.chrome.options import Options  # noqa: E402
 from selenium.webdriver.chrome.service import Service  # noqa: E402
 from selenium.webdriver.common.by import By  # noqa: E402
@@ -149,38 +150,58 @@ def field(driver: Any, name: str) -> WebElement:
 
 
 def wait(check: Callable[[], bool], timeout: float = 20) -> None:
+    """Until `check()`; an element replaced while it is read (the page redraws
+    a section after each choice) only means "look again"."""
     deadline = time.monotonic() + timeout
-    while not check():
+    while True:
+        try:
+            if check():
+                return
+        except StaleElementReferenceException:
+            pass
         assert time.monotonic() < deadline, "timed out"
         time.sleep(0.1)
 
 
-def search_for(driver: Any, search: WebElement, type_name: str) -> WebElement:
-    """Type an exact type name in the catalog search: its one "Add" button."""
+def click(driver: Any, name: str) -> None:
+    """Click the marked element, finding it again if a redraw replaced it."""
+
+    def clicked() -> bool:
+        find(driver, name).click()
+        return True
+
+    wait(clicked)
+
+
+def add_from_search(driver: Any, search: WebElement, type_name: str) -> None:
+    """Type an exact type name in the catalog search, click its "Add"."""
     search.send_keys(Keys.CONTROL, "a")
     search.send_keys(type_name)
 
-    def only(d: Any) -> WebElement | bool:
-        buttons = d.find_elements(By.CSS_SELECTOR, 'button[data-test^="add-"]')
+    def add() -> bool:
+        buttons = driver.find_elements(By.CSS_SELECTOR, 'button[data-test^="add-"]')
         names = [b.get_attribute("data-test") for b in buttons]
-        return buttons[0] if names == [f"add-{type_name}"] else False
+        if names != [f"add-{type_name}"]:
+            return False
+        buttons[0].click()
+        return True
 
-    found = WebDriverWait(driver, 20).until(only)
-    assert isinstance(found, WebElement)
-    return found
+    wait(add)
 
 
 def choose(driver: Any, name: str, text: str) -> None:
     """Pick `text` in the marked select's menu."""
-    find(driver, name).click()
+    click(driver, name)
 
-    def option(d: Any) -> WebElement | bool:
-        items = d.find_elements(By.CSS_SELECTOR, ".q-menu .q-item")
-        return next((e for e in items if e.text.strip() == text), False)
+    def pick() -> bool:
+        items = driver.find_elements(By.CSS_SELECTOR, ".q-menu .q-item")
+        item = next((e for e in items if e.text.strip() == text), None)
+        if item is None:
+            return False
+        item.click()
+        return True
 
-    found = WebDriverWait(driver, 20).until(option)
-    assert isinstance(found, WebElement)
-    found.click()
+    wait(pick)
 
 
 def checked(element: WebElement) -> bool:
@@ -201,9 +222,9 @@ def test_editor_session_matches_the_cli_and_the_ioc(
     search.send_keys("ana. output")
     driver.execute_script("arguments[0].scrollIntoView()", find(driver, "add-EL4134"))
     driver.save_screenshot(str(screenshots / "01-search.png"))
-    search_for(driver, search, "EL4134").click()
+    add_from_search(driver, search, "EL4134")
     wait(lambda: "exists already" in find(driver, "add-error").text)
-    search_for(driver, search, "EL3102").click()
+    add_from_search(driver, search, "EL3102")
     find(driver, "symbols")
     assert driver.current_url.endswith("/type/EL3102")
     assert (folder / "EL3102.yaml").is_file()
@@ -219,15 +240,15 @@ def test_editor_session_matches_the_cli_and_the_ioc(
     wait(lambda: find(driver, "state").text == "unsaved changes")
     assert "x 20 samples" in find(driver, "symbol-facts-1").text
     driver.save_screenshot(str(screenshots / "03-EL3702-factor.png"))
-    find(driver, "revert").click()
+    click(driver, "revert")
     wait(lambda: find(driver, "state").text == "saved")
 
     driver.get(f"{editor}type/EL3104")
     choose(driver, "group", "Compact")
     wait(lambda: checked(find(driver, "symbol-1")))
-    find(driver, "symbol-1").click()
+    click(driver, "symbol-1")
     wait(lambda: not checked(find(driver, "symbol-1")))
-    find(driver, "coe-0x8000").click()
+    click(driver, "coe-0x8000")
     wait(lambda: checked(find(driver, "coe-0x8000")))
     prefix = field(driver, "prefix")
     prefix.send_keys(Keys.CONTROL, "a")
@@ -240,11 +261,11 @@ def test_editor_session_matches_the_cli_and_the_ioc(
     assert "unsaved changes" in find(driver, "state").text
     driver.save_screenshot(str(screenshots / "04-EL3104-compact.png"))
 
-    find(driver, "review").click()
+    click(driver, "review")
     diff = find(driver, "diff")
     wait(lambda: "selected_pdo_group: Compact" in diff.text)
     driver.save_screenshot(str(screenshots / "05-diff.png"))
-    find(driver, "save").click()
+    click(driver, "save")
     wait(lambda: find(driver, "state").text == "saved")
     driver.save_screenshot(str(screenshots / "06-saved.png"))
 
