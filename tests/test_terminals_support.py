@@ -12,9 +12,11 @@ import contextlib
 import io
 import os
 import sys
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
+
+import pytest
 
 from fastcs_ethercat.cli import app
 from fastcs_ethercat.esi.catalog import EsiCatalog, build_catalog
@@ -24,6 +26,9 @@ from tests.conftest import TERMINALS_DIR
 
 TERMINALS = TERMINALS_DIR
 ESI_ARGS = ["--esi", str(ESI), "--esi", str(FIXTURE)]
+needs_esi = pytest.mark.skipif(
+    not ESI.is_dir(), reason="needs the shared Beckhoff ESI files (../shared/esi)"
+)
 
 DLS_TYPES = [
     "EK1100",
@@ -89,3 +94,17 @@ def cache_home(path: Path) -> Iterator[None]:
 def real_catalog() -> EsiCatalog:
     """The catalog of the real ESI files plus the EL3356-0010 fixture."""
     return build_catalog([ESI, FIXTURE], use_cache=False)
+
+
+def regenerated_old_el3104(
+    folder: Path, cache: Path, edit: Callable[[Path], object]
+) -> tuple[Path, CliResult]:
+    """EL3104 generated at its older revision 0x00100000 into `folder`, edited
+    by `edit(path)`, then regenerated: the file and the regenerate result."""
+    with cache_home(cache):
+        made = run_cli("terminals", "generate", "EL3104", "--revision", "0x00100000",
+                       *ESI_ARGS, "--out", str(folder))  # fmt: skip
+        assert made.code == 0, made.err
+        path = folder / "EL3104.yaml"
+        edit(path)
+        return path, run_cli("terminals", "regenerate", str(folder), *ESI_ARGS)
