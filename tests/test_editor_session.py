@@ -72,6 +72,7 @@ def test_the_preview_names_the_pvs_as_the_ioc_does() -> None:
         preview_pvs(el3104, "EL3104", "BL45P-MO-IOC-01")
 
 
+@pytest.mark.e2e
 def test_the_ioc_never_imports_the_editor() -> None:
     code = (
         "import sys, fastcs_ethercat.cli, fastcs_ethercat.ioc.app\n"
