@@ -56,9 +56,9 @@ def ioc_command(
     ] = False,
 ) -> None:
     """Serve every terminal of a TwinCAT target as EPICS PVs (CA and PVA)."""
-    from fastcs_ethercat.ioc.lean_imports import import_ioc_modules
+    from fastcs_ethercat.ioc.fastcs_adapter import check_installed
 
-    import_ioc_modules()
+    check_installed()
     from fastcs_ethercat.ioc import app
     from fastcs_ethercat.ioc.config import load_ioc_config
 
@@ -89,9 +89,9 @@ def demo_command(
     prefix: Annotated[str, typer.Option("--prefix", help="PV prefix.")] = "DEMO",
 ) -> None:
     """Run the simulator with the demo chain and an IOC against it (loopback)."""
-    from fastcs_ethercat.ioc.lean_imports import import_ioc_modules
+    from fastcs_ethercat.ioc.fastcs_adapter import check_installed
 
-    import_ioc_modules()
+    check_installed()
     from fastcs_ethercat.ioc import app
     from fastcs_ethercat.ioc.config import load_ioc_config
     from fastcs_ethercat.sim.process import SimProcess

@@ -19,7 +19,6 @@ from fastcs_ethercat.ads.wire import STRING_ENCODING
 from fastcs_ethercat.ioc.clients import ClientFactory, read_text
 from fastcs_ethercat.ioc.plan import CoePoint
 
-
 NUMBERS = ("int", "float")
 
 

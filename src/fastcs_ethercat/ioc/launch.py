@@ -111,12 +111,10 @@ def build_fastcs(
     if not root.path:
         root.set_path([prefix])
     if options.ca:
-        from softioc.imports import callbackSetQueueSize
+        from fastcs_ethercat.ioc import fastcs_adapter
 
-        from fastcs_ethercat.ioc.record_checks import install_field_memo
-
-        callbackSetQueueSize(options.callback_queue_size)
-        install_field_memo()  # one record per CA PV: check repeated fields once
+        fastcs_adapter.set_callback_queue_size(options.callback_queue_size)
+        fastcs_adapter.install_field_memo()  # one record per CA PV: fields once
     transports = [*build_transports(options), _Announce(prefix, on_ready)]
     return FastCS(root, transports, loop)
 
