@@ -94,6 +94,7 @@ def demo_command(
     check_installed()
     from fastcs_ethercat.ioc import app
     from fastcs_ethercat.ioc.config import load_ioc_config
+    from fastcs_ethercat.ioc.controllers.root import RootController
     from fastcs_ethercat.sim.process import SimProcess
 
     for needed in (DEMO_CONFIG, DEMO_CHAIN):
@@ -110,10 +111,9 @@ def demo_command(
             DEMO_CONFIG,
             {"prefix": prefix, "target": sim.pyads_ip, "ams_net_id": sim.net_id},
         )
-        served: list[app.Ioc] = []
 
-        def ready() -> None:
-            entries = served[0].tree.pvs()
+        def ready(root: RootController) -> None:
+            entries = root.pvs()
             listing.write_text("".join(entry.line() + "\n" for entry in entries))
             first = next(
                 (e.name for e in entries if e.name.endswith(":AICompactCh1")),
@@ -124,7 +124,7 @@ def demo_command(
             print(f"demo: try   caget {first}")
             print("demo: Ctrl-C to stop", flush=True)
 
-        app.serve(settings, on_ready=ready, on_built=served.append)
+        app.serve(settings, on_ready=ready)
 
 
 if __name__ == "__main__":

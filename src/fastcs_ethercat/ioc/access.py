@@ -43,8 +43,6 @@ from fastcs.transports import Transport
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.ioc.fastcs_adapter import database_records
 
-ACCESS_SECURITY_CONFIG_KEY: Final = "access_security_file"
-"""IOC config key (and `--acf` flag) naming the ACF file."""
 OUTPUTS_GROUP: Final = "OUTPUTS"
 """ASG for output PVs (process data the IOC writes to terminals)."""
 COE_GROUP: Final = "COE"
