@@ -141,8 +141,17 @@ class RootController(Controller):
             return
         plan, connection = await self.plan_source()
         self.build(plan, connection)
-        for warning in self.warnings():
+        shortened = self.names.shortened
+        for warning in self.warnings(with_shortened=False):
             logger.warning("%s", warning)
+        for shortening in shortened:  # thousands with every CoE object selected
+            logger.debug("PV name shortened: %s", shortening)
+        if shortened:
+            logger.warning(
+                "%d PV names shortened to fit 60 characters (details at debug level,"
+                " or `ioc --list-pvs`)",
+                len(shortened),
+            )
         logger.info(
             "%d master(s), %d terminals, %d PVs",
             len(plan.masters),
@@ -220,7 +229,7 @@ class RootController(Controller):
                 found += terminal.unserved
         return found
 
-    def warnings(self) -> list[str]:
+    def warnings(self, *, with_shortened: bool = True) -> list[str]:
         """Everything a user should know about: nothing is dropped silently."""
         plan = self.plan
         found = list(plan.warnings)
@@ -232,7 +241,8 @@ class RootController(Controller):
                     else f"{terminal.slave.name}: {w}"
                     for w in terminal.warnings
                 ]
-        found += [f"PV name shortened: {s}" for s in self.names.shortened]
+        if with_shortened:
+            found += [f"PV name shortened: {s}" for s in self.names.shortened]
         found += [f"alias matches nothing: {k}" for k in self.names.unused_aliases]
         found += [f"no PV for {src}: {why}" for src, why in self.unserved_points()]
         return list(dict.fromkeys(found))
