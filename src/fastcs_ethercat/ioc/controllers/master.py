@@ -185,6 +185,8 @@ class MasterController(Controller):
         self.groups: list[PollGroup] = []
         self.points: dict[str, Point] = {}
         """Point key -> the point as the target has it now (offsets move)."""
+        self.symbol_port = plan.symbol_port
+        """The device's ADS port as discovered last (sum reads and writes)."""
         self._group_of: dict[str, PollGroup] = {}
         self._tasks: list[asyncio.Task[Any]] = []
         self.unserved: list[tuple[str, str]] = []
@@ -256,6 +258,7 @@ class MasterController(Controller):
                 self.terminal_positions[terminal.slave.address] = (
                     terminal.slave.position
                 )
+        self.symbol_port = plan.symbol_port or self.symbol_port
         self.groups = []
         for rate, points in sorted(by_rate.items()):
             kept = [p for p in points if keep(p)]
@@ -281,9 +284,7 @@ class MasterController(Controller):
         posting never runs two batches at once, and every value of one cycle
         is published with that cycle's one timestamp.
         """
-        client = await self.connection.client(
-            self.connection.net_id, self.plan.symbol_port
-        )
+        client = await self.connection.client(self.connection.net_id, self.symbol_port)
         for group in self.groups:
             batches: asyncio.Queue[Batch] = asyncio.Queue()
 
@@ -356,9 +357,7 @@ class MasterController(Controller):
         group = self._group_of.get(point.key)
         if live is None or group is None:
             raise LookupError(f"{point.symbol} is not on the target any more")
-        client = await self.connection.client(
-            self.connection.net_id, self.plan.symbol_port
-        )
+        client = await self.connection.client(self.connection.net_id, self.symbol_port)
         try:
             await write_point(client, live, value)
         except AdsError as error:
