@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from collections import defaultdict
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 from fastcs_ethercat.ads.client import SymbolTables
@@ -394,14 +394,28 @@ def generic_points(
     master: str, entries: Sequence[AdsSymbolEntry], types: Types
 ) -> list[Point]:
     """Every live symbol of an unknown terminal, read-only, in name order."""
+
+    def name(rest: str, member: _Member) -> str:
+        base = RUNTIME_ATTRIBUTES.get(rest) or snake_case(rest)
+        return f"{base}_{snake_case(member.path)}" if member.path else base
+
+    return _live_points(master, entries, types, name)
+
+
+def _live_points(
+    master: str,
+    entries: Sequence[AdsSymbolEntry],
+    types: Types,
+    name: Callable[[str, _Member], str],
+) -> list[Point]:
+    """Every member of `entries`, read-only, in name order; `name(rest of
+    the symbol's name, member)` names each attribute (made unique)."""
     names = _Names()
     points: list[Point] = []
     for entry in sorted(entries, key=lambda e: e.name):
         rest = entry.name.partition(".")[2]
-        base = RUNTIME_ATTRIBUTES.get(rest) or snake_case(rest)
         for member in symbol_members(entry, types):
-            attribute = f"{base}_{snake_case(member.path)}" if member.path else base
-            points.append(_point(master, entry, member, names.take(attribute)))
+            points.append(_point(master, entry, member, names.take(name(rest, member))))
     return points
 
 
@@ -452,14 +466,9 @@ def master_points(
     master: str, entries: Sequence[AdsSymbolEntry], types: Types
 ) -> list[Point]:
     """The master's own `Inputs` / `Outputs` members, read-only."""
-    names = _Names()
-    points: list[Point] = []
-    for entry in sorted(entries, key=lambda e: e.name):
-        rest = entry.name.partition(".")[2]
-        for member in symbol_members(entry, types):
-            attribute = snake_case(member.path or rest)
-            points.append(_point(master, entry, member, names.take(attribute)))
-    return points
+    return _live_points(
+        master, entries, types, lambda rest, member: snake_case(member.path or rest)
+    )
 
 
 def resolve_master(
