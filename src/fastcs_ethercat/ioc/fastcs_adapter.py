@@ -61,7 +61,7 @@ from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from importlib.machinery import ModuleSpec
-from typing import TYPE_CHECKING, Any, Final
+from typing import TYPE_CHECKING, Any, Final, NamedTuple
 
 import numpy as np
 
@@ -82,9 +82,11 @@ pyproject.toml."""
 # -- the update FastCS's main branch has -------------------------------------
 
 
-@dataclass(frozen=True, slots=True)
-class Update:
-    """A value with the time it was read and its alarm (EPICS numbers)."""
+class Update(NamedTuple):
+    """A value with the time it was read and its alarm (EPICS numbers).
+
+    A tuple: one is made for every published value, so it must be cheap.
+    """
 
     value: Any
     timestamp: float
@@ -306,8 +308,6 @@ def _pva_poster(pv: Any, attribute: AttrR[Any, Any]) -> Callable[[Update], None]
     from fastcs.transports.epics.pva.types import cast_to_p4p_value
 
     def alarm_of(update: Update) -> dict[str, Any]:
-        if not update.severity:
-            return _NO_ALARM
         status = pva_status(update.status)
         return {
             "severity": update.severity,
@@ -316,10 +316,11 @@ def _pva_poster(pv: Any, attribute: AttrR[Any, Any]) -> Callable[[Update], None]
         }
 
     def scalar(update: Update) -> None:
+        alarm = alarm_of(update) if update.severity else _NO_ALARM
         pv.post(
             {
                 "value": update.value,
-                "alarm": alarm_of(update),
+                "alarm": alarm,
                 "timeStamp": pva_time(update.timestamp),
             }
         )
