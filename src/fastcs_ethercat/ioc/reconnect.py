@@ -13,21 +13,21 @@ from __future__ import annotations
 import asyncio
 import logging
 import time
-from typing import TYPE_CHECKING, Any, Final
+from collections.abc import Sequence
+from typing import Any, Final, Protocol
+
+from fastcs.attributes import AttrR
 
 from fastcs_ethercat.ads.constants import AdsState, AmsPort
 from fastcs_ethercat.ioc.alarms import Status
+from fastcs_ethercat.ioc.config import IocConfig
 from fastcs_ethercat.ioc.connection import Connection
 from fastcs_ethercat.ioc.discovery import discover, read_symbol_version
-from fastcs_ethercat.ioc.health import COMM
+from fastcs_ethercat.ioc.health import COMM, Health
 from fastcs_ethercat.ioc.plan import SystemPlan
 from fastcs_ethercat.ioc.supervisor import LinkState, Probe, Supervisor
 from fastcs_ethercat.terminals.loader import load_terminals
 from fastcs_ethercat.terminals.registry import TerminalRegistry
-
-if TYPE_CHECKING:
-    from fastcs_ethercat.ioc.controllers.root import RootController
-    from fastcs_ethercat.ioc.controllers.terminal import TerminalController
 
 logger = logging.getLogger(__name__)
 
@@ -39,12 +39,49 @@ CHAIN: Final = "chain"
 """Health reason: the point is gone from the target since a reconnect."""
 
 
+class PolledMaster(Protocol):
+    """A master controller, as far as polling goes."""
+
+    async def start_polling(self) -> None: ...
+    async def stop_polling(self) -> None: ...
+
+
+class CoeTerminal(Protocol):
+    """A terminal controller, as far as its CoE values go."""
+
+    @property
+    def coe_attributes(self) -> Sequence[AttrR[Any, Any]]: ...
+    async def refresh_coe(self) -> None: ...
+
+
+class ServedTree(Protocol):
+    """What the reconnection acts on: the root controller's tree."""
+
+    config: IocConfig
+    health: Health
+
+    @property
+    def masters(self) -> Sequence[PolledMaster]: ...
+
+    @property
+    def plan(self) -> SystemPlan:
+        """The plan the tree was built for."""
+        ...
+
+    def use_plan(
+        self, plan: SystemPlan
+    ) -> tuple[list[AttrR[Any, Any]], list[AttrR[Any, Any]]]: ...
+    def target_attributes(self) -> list[AttrR[Any, Any]]: ...
+    def terminals(self) -> Sequence[CoeTerminal]: ...
+    async def show_link(self, state: str, error: str) -> None: ...
+
+
 class Reconnection:
     """Polling, supervision and re-discovery of one root's target."""
 
     def __init__(
         self,
-        root: RootController,
+        root: ServedTree,
         connection: Connection,
         plan: SystemPlan,
         registry: TerminalRegistry | None = None,
@@ -185,7 +222,7 @@ class Reconnection:
         # A slave's mailbox takes one SDO at a time; several slaves at once.
         slots = asyncio.Semaphore(COE_SLAVES_AT_ONCE)
 
-        async def refresh(terminal: TerminalController) -> None:
+        async def refresh(terminal: CoeTerminal) -> None:
             async with slots:
                 await terminal.refresh_coe()
 

@@ -177,7 +177,9 @@ class RootController(Controller):
         self.pv_count = len(self.pvs())
         self.unserved = len(self.unserved_points())
 
-    def use_plan(self, plan: SystemPlan) -> tuple[list[AttrR[Any, Any]], list[Any]]:
+    def use_plan(
+        self, plan: SystemPlan
+    ) -> tuple[list[AttrR[Any, Any]], list[AttrR[Any, Any]]]:
         """Every master polls what `plan` (a discovery) has of its points;
         (attributes gone from the target, attributes served)."""
         by_name = {m.name: m for m in plan.masters}
