@@ -36,10 +36,10 @@ from fastcs_ethercat.ioc.alarms import (
     pva_status,
     set_alarm,
 )
-from fastcs_ethercat.ioc.fastcs_hooks import (
-    WRITTEN_AGAINST_FASTCS,
-    check_fastcs_shape,
+from fastcs_ethercat.ioc.fastcs_adapter import (
     endpoints_of,
+    shape_problems,
+    version_problems,
 )
 from tests.conftest import TEST_DATA
 from tests.ioc_support import (
@@ -60,14 +60,9 @@ CA_NAMES = (
 SCALAR_PVA_NAMES = tuple(name for name in CA_NAMES if name != "Samples")
 
 
-def test_fastcs_still_has_the_shape_the_hooks_read() -> None:
-    import fastcs
-
-    check_fastcs_shape()
-    assert fastcs.__version__ == WRITTEN_AGAINST_FASTCS, (
-        "FastCS was upgraded: review ioc/fastcs_hooks.py, then update "
-        "WRITTEN_AGAINST_FASTCS"
-    )
+def test_installed_packages_have_the_shape_the_adapter_reads() -> None:
+    assert version_problems() == []
+    assert shape_problems() == []
 
 
 def test_pva_status_groups_ca_statuses_as_qsrv_does() -> None:

@@ -21,11 +21,13 @@ pytestmark = pytest.mark.e2e
 IOC = (sys.executable, "-m", "fastcs_ethercat")
 
 
-def _run(*args: str, cwd: Path = REPO_ROOT) -> subprocess.CompletedProcess[str]:
+def _run(
+    *args: str, cwd: Path = REPO_ROOT, **env: str
+) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
         [*IOC, *args],
         cwd=cwd,
-        env=ioc_env(new_token()),
+        env={**ioc_env(new_token()), **env},
         capture_output=True,
         text=True,
         timeout=60,
@@ -38,6 +40,23 @@ def test_a_missing_config_is_one_error_line(tmp_path: Path) -> None:
     assert done.returncode == 2
     assert done.stderr.strip().splitlines() == [
         f"error: {tmp_path / 'none.yaml'}: cannot read: No such file or directory"
+    ]
+
+
+def test_an_untested_fastcs_version_stops_the_ioc_in_one_line(tmp_path: Path) -> None:
+    """FastCS's metadata says 0.99.0 (a dist-info ahead on the path): the IOC
+    refuses before anything else, naming the package and both versions."""
+    fake = tmp_path / "fastcs-0.99.0.dist-info"
+    fake.mkdir()
+    (fake / "METADATA").write_text(
+        "Metadata-Version: 2.1\nName: fastcs\nVersion: 0.99.0\n"
+    )
+    done = _run("ioc", "--config", "ioc/demo.yaml", PYTHONPATH=str(tmp_path))
+
+    assert done.returncode == 2
+    assert done.stderr.strip().splitlines() == [
+        "error: packages: fastcs 0.99.0 is installed, fastcs-ethercat is tested "
+        "with fastcs>=0.14.4,<0.15: install the versions pyproject.toml names"
     ]
 
 

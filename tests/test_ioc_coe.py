@@ -97,3 +97,16 @@ def test_codec() -> None:
     assert encode_coe(presentation, 3) == b"\x03"
     with pytest.raises(ValueError):
         encode_coe(presentation, 8)
+
+
+def test_byte_array_objects_decode_to_what_their_waveform_takes() -> None:
+    """ELM3704 diagnosis messages (`ARRAY [0..21] OF BYTE`): an array, not one
+    number (which the Waveform refused, once per value, with a traceback)."""
+    from fastcs_ethercat.ioc.attributes import coe_datatype
+
+    point = CoePoint("message", 0x10F3, 6, "ARRAY [0..21] OF BYTE", 176, False)
+    raw = bytes(range(22))
+    value = decode_coe(point, raw)
+    assert coe_datatype(point).validate(value).tolist() == list(range(22))
+    assert encode_coe(point, value) == raw
+    assert decode_coe(point, raw[:5]).tolist() == [0, 1, 2, 3, 4]

@@ -6,6 +6,7 @@ in-process and fast; the end-to-end path is in test_ioc_demo.
 
 from __future__ import annotations
 
+import asyncio
 import enum
 from pathlib import Path
 from typing import Any
@@ -15,23 +16,24 @@ import pytest
 from fastcs.attributes import AttrR, AttrRW
 from fastcs.datatypes import Bool, Enum, Int, Waveform
 
+from fastcs_ethercat.ads.constants import IndexGroup
 from fastcs_ethercat.ads.ethercat import (
     AlState,
     AlStateFlag,
     FrameCounters,
     SlaveState,
 )
-from fastcs_ethercat.ioc.app import poll_groups
 from fastcs_ethercat.ioc.attributes import CoeIO
-from fastcs_ethercat.ioc.config import load_ioc_config
+from fastcs_ethercat.ioc.config import IocConfig, load_ioc_config
+from fastcs_ethercat.ioc.connection import Connection
 from fastcs_ethercat.ioc.controllers.master import MasterStatus
+from fastcs_ethercat.ioc.controllers.root import RootController
 from fastcs_ethercat.ioc.controllers.terminal import (
     AlStateView,
     GenericTerminalController,
     TerminalController,
     al_state_text,
 )
-from fastcs_ethercat.ioc.controllers.tree import Tree, build_tree
 from fastcs_ethercat.ioc.datatypes import ExactFloat, IntegralFloat
 from fastcs_ethercat.ioc.plan import (
     CoePoint,
@@ -112,48 +114,54 @@ def _plan() -> SystemPlan:
 
 
 class Recorder:
-    """Stands in for the data plane: remembers writes, serves CoE values."""
+    """Stands in for the target's ADS clients: remembers writes, answers SDOs."""
 
     def __init__(self) -> None:
-        self.writes: list[tuple[str, Any]] = []
-        self.coe: dict[int, Any] = {2: 1}
+        self.writes: list[tuple[int, int, bytes]] = []
+        self.coe: dict[int, int] = {2: 1}
         self.fail_coe = False
 
-    async def write(self, point: Point, value: Any) -> None:
-        self.writes.append((point.symbol, value))
+    async def get(self, net_id: str, ams_port: int) -> Recorder:
+        return self
 
-    async def read_coe(self, coe: CoePoint) -> Any:
+    async def read(self, group: int, offset: int, size: int) -> bytes:
+        assert group == IndexGroup.COE_SDO
         if self.fail_coe:
             raise TimeoutError("no answer")
-        return self.coe[coe.subindex]
+        return self.coe[offset & 0xFF].to_bytes(size, "little")
 
-    async def write_coe(self, coe: CoePoint, value: Any) -> None:
-        self.coe[coe.subindex] = value
+    async def write(self, group: int, offset: int, data: bytes) -> None:
+        if group == IndexGroup.COE_SDO:
+            self.coe[offset & 0xFF] = int.from_bytes(data, "little")
+        else:
+            self.writes.append((group, offset, data))
 
 
-def _tree(recorder: Recorder, **extra: Any) -> Tree:
+def _root(
+    recorder: Recorder, config: IocConfig | None = None, **extra: Any
+) -> RootController:
     """The tree, with its IOs connected as FastCS does before serving."""
-    tree = build_tree(
-        _plan(),
-        "TEST",
-        target="sim",
-        writer=recorder.write,
-        coe_access=lambda m, t: (recorder.read_coe, recorder.write_coe),
-        **extra,
-    )
-    tree.root.post_initialise()
-    return tree
+
+    async def no_target() -> Any:
+        raise AssertionError("built from the plan, never discovered")
+
+    config = config or IocConfig(prefix="TEST", target="sim", **extra)
+    root = RootController(config, no_target)
+    connection = Connection(recorder, "127.0.0.1.1.1", read_only=config.read_only)  # type: ignore[arg-type]
+    root.build(_plan(), connection)
+    root.post_initialise()
+    return root
 
 
-def _analog(tree: Tree) -> TerminalController:
-    terminal = tree.masters[0].terminals[1002]
+def _analog(root: RootController) -> TerminalController:
+    terminal = root.masters[0].terminals[1002]
     assert isinstance(terminal, TerminalController)
     return terminal
 
 
 def test_tree_levels_and_names_follow_the_default_scheme() -> None:
-    tree = _tree(Recorder())
-    names = [entry.name for entry in tree.pvs()]
+    root = _root(Recorder())
+    names = [entry.name for entry in root.pvs()]
 
     assert "TEST:ETH1:RIO1:MOD2:AIStdCh1Value" in names
     assert "TEST:ETH1:RIO1:MOD2:Mode_RBV" in names
@@ -164,11 +172,11 @@ def test_tree_levels_and_names_follow_the_default_scheme() -> None:
     assert "TEST:ETH1:SlaveCount" in names
     assert "TEST:PollRate" in names
     assert all(len(name) <= 60 for name in names)
-    assert [e.line() for e in tree.pvs()] == [e.line() for e in _tree(Recorder()).pvs()]
+    assert [e.line() for e in root.pvs()] == [e.line() for e in _root(Recorder()).pvs()]
 
 
 def test_types_keep_width_signedness_and_precision() -> None:
-    terminal = _analog(_tree(Recorder()))
+    terminal = _analog(_root(Recorder()))
     by_symbol = {a.io_ref.point.symbol: a for a in terminal.by_key.values()}
 
     def datatype(name: str) -> Any:
@@ -190,23 +198,23 @@ def test_types_keep_width_signedness_and_precision() -> None:
 
 
 def test_a_point_without_a_pv_form_is_reported_not_dropped() -> None:
-    tree = _tree(Recorder())
+    root = _root(Recorder())
 
-    assert [source for source, _ in tree.unserved()] == [f"{ANALOG}.Strange"]
-    assert tree.root.unserved == 1
+    assert [source for source, _ in root.unserved_points()] == [f"{ANALOG}.Strange"]
+    assert root.unserved == 1
 
 
 def test_read_only_serves_outputs_and_coe_read_only() -> None:
-    tree = _tree(Recorder(), read_only=True)
-    entries = {e.name: e for e in tree.pvs()}
+    root = _root(Recorder(), read_only=True)
+    entries = {e.name: e for e in root.pvs()}
 
     assert entries["TEST:ETH1:RIO1:MOD2:AOOutput"].access == "r"
     assert entries["TEST:ETH1:RIO1:MOD2:CoePresentation"].access == "r"
 
 
 def test_unknown_type_gets_the_generic_controller() -> None:
-    tree = _tree(Recorder())
-    generic = tree.masters[0].terminals[1003]
+    root = _root(Recorder())
+    generic = root.masters[0].terminals[1003]
 
     assert isinstance(generic, GenericTerminalController)
     assert generic.diag["Type"].get() == "unknown"
@@ -214,26 +222,33 @@ def test_unknown_type_gets_the_generic_controller() -> None:
 
 
 async def test_changes_are_posted_and_a_bad_value_only_marks_its_point() -> None:
-    terminal = _analog(_tree(Recorder()))
+    root = _root(Recorder())
+    master, terminal = root.masters[0], _analog(root)
     mode = next(p for p in ANALOG_POINTS if p.symbol.endswith(".Mode"))
     value = ANALOG_POINTS[0]
     samples = next(p for p in ANALOG_POINTS if p.symbol.endswith(".Samples"))
-
-    await terminal.apply_change(value, -1234)
-    await terminal.apply_change(mode, 5)
-    await terminal.apply_change(mode, 3)  # not a member: must not raise
-    await terminal.apply_change(samples, np.arange(10, dtype=np.int16))
+    batches: asyncio.Queue[Any] = asyncio.Queue()
+    changes = [
+        (value, -1234),
+        (mode, 5),
+        (mode, 3),
+        (samples, np.arange(10, dtype=np.int16)),
+    ]
+    batches.put_nowait((changes, 1.0))  # 3 is no member: must not stop the rest
+    posting = asyncio.create_task(master._post_batches(batches))
+    await asyncio.sleep(0.05)
+    posting.cancel()
 
     assert terminal.by_key[value.key].get() == -1234
     mode_value = terminal.by_key[mode.key].get()
     assert isinstance(mode_value, enum.Enum) and mode_value.value == 5
-    assert list(terminal.failed_points) == [mode.key]
+    assert master.failures == 1 and "Mode" in master.last_error
     assert terminal.by_key[samples.key].get().tolist() == list(range(10))
 
 
-async def test_writes_reach_the_writer_as_plain_values() -> None:
+async def test_writes_go_once_to_where_the_live_symbol_is() -> None:
     recorder = Recorder()
-    terminal = _analog(_tree(recorder))
+    terminal = _analog(_root(recorder))
     mode = terminal.by_key[next(p.key for p in ANALOG_POINTS if "Mode" in p.symbol)]
     output = terminal.by_key[next(p.key for p in ANALOG_POINTS if "AO" in p.symbol)]
     assert isinstance(mode, AttrRW) and isinstance(output, AttrRW)
@@ -241,14 +256,14 @@ async def test_writes_reach_the_writer_as_plain_values() -> None:
     await mode.put(mode.datatype.validate(5), sync_setpoint=False)
     await output.put(-7, sync_setpoint=False)
 
-    assert recorder.writes == [(f"{ANALOG}.Mode", 5), (f"{ANALOG}.AO Output", -7)]
+    assert recorder.writes == [(0xF020, 0, b"\x05"), (0xF020, 0, b"\xf9")]
     with pytest.raises(ValueError):
         await output.put(1000)  # beyond SINT
 
 
 async def test_coe_is_read_on_demand_written_and_read_back() -> None:
     recorder = Recorder()
-    terminal = _analog(_tree(recorder))
+    terminal = _analog(_root(recorder))
     (coe,) = terminal.coe_attributes
     io = terminal.coe_io
     assert isinstance(io, CoeIO) and isinstance(coe, AttrRW)
@@ -266,8 +281,8 @@ async def test_coe_is_read_on_demand_written_and_read_back() -> None:
 
 
 async def test_master_status_reaches_every_terminal() -> None:
-    tree = _tree(Recorder())
-    master = tree.masters[0]
+    root = _root(Recorder())
+    master = root.masters[0]
     states = (
         SlaveState.of(AlState.OP),
         SlaveState.of(AlState.SAFEOP, AlStateFlag.ERROR, link=0x04),
@@ -276,7 +291,7 @@ async def test_master_status_reaches_every_terminal() -> None:
     status = MasterStatus(8, 3, FrameCounters(1, 100, 2, 50, 1), states, {1002: 7})
 
     await master.apply_status(status)
-    analog = _analog(tree)
+    analog = _analog(root)
 
     assert master.attrs["SlaveCount"].get() == 3
     assert master.attrs["LostFrames"].get() == 3
@@ -291,8 +306,8 @@ async def test_a_failing_master_read_never_raises_out_of_the_scan() -> None:
     async def broken() -> MasterStatus:
         raise ConnectionError("gone")
 
-    tree = _tree(Recorder())
-    master = tree.masters[0]
+    root = _root(Recorder())
+    master = root.masters[0]
     master.reader = broken
 
     await master.read_diagnostics()
@@ -308,14 +323,11 @@ def test_poll_groups_follow_per_terminal_rates(tmp_path: Path) -> None:
         "prefix: TEST\ntarget: 127.0.0.1\npoll_rate_hz: 10\n"
         f"terminals:\n  {ANALOG}: {{poll_rate_hz: 50}}\n"
     )
-    config = load_ioc_config(config_file)
+    root = _root(Recorder(), load_ioc_config(config_file))
 
-    groups = poll_groups(config, _plan())
-
-    assert [(g.rate_hz, len(g.points)) for g in groups] == [
-        (10.0, 1),
-        (50.0, len(ANALOG_POINTS)),
-    ]
+    groups = root.masters[0].groups
+    served = len(ANALOG_POINTS) - 1  # "Strange" has no PV form, is not polled
+    assert [(g.rate_hz, len(g.points)) for g in groups] == [(10.0, 1), (50.0, served)]
 
 
 def test_aliases_pin_segments_and_unknown_ones_are_reported() -> None:
@@ -325,9 +337,9 @@ def test_aliases_pin_segments_and_unknown_ones_are_reported() -> None:
         f"{MASTER}^{COUPLER}^{ANALOG}^AI Standard Channel 1.Value": "Pos1",
         "Device 9 (EtherCAT)": "Nowhere",
     }
-    tree = _tree(Recorder(), aliases=aliases)
-    names = {entry.name for entry in tree.pvs()}
+    root = _root(Recorder(), pv_aliases=aliases)
+    names = {entry.name for entry in root.pvs()}
 
     assert "TEST:ECAT:RIO1:PIEZO:Pos1" in names
     assert "TEST:ECAT:RIO1:PIEZO:Mode_RBV" in names
-    assert tree.names.unused_aliases == ("Device 9 (EtherCAT)",)
+    assert root.names.unused_aliases == ("Device 9 (EtherCAT)",)

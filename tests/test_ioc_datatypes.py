@@ -11,7 +11,6 @@ from fastcs_ethercat.esi.dictionary import parse_data_type
 from fastcs_ethercat.esi.model import EsiDataType
 from fastcs_ethercat.ioc.datatypes import (
     EXACT_DOUBLE_INTEGER,
-    BitField,
     ExactFloat,
     IntegralFloat,
     UnsupportedTypeError,
@@ -159,33 +158,3 @@ def test_enum_labels_and_descriptions_fit_their_record_fields() -> None:
     assert description("  a \n b ") == "a b"
     assert description(None) is None
     assert all(len(text.encode()) <= 40 for text in (description("°" * 30) or "", ""))
-
-
-def test_status_word_bits_become_one_bool_each(
-    el3104_types: dict[str, EsiDataType],
-) -> None:
-    status = [
-        item
-        for item in el3104_types["DT6000"].sub_items
-        if 16 <= item.bit_offset < 32  # the Status word of the TxPDO
-    ]
-    fields = [BitField(i.name, i.bit_offset - 16, i.bit_size) for i in status]
-    word = (1 << 1) | (3 << 2) | (1 << 6) | (1 << 14) | (1 << 15)
-
-    values = {f.name: f.extract(word) for f in fields}
-    datatypes = {f.name: f.datatype() for f in fields}
-
-    assert values == {
-        "Underrange": False,
-        "Overrange": True,
-        "Limit 1": 3,
-        "Limit 2": 0,
-        "Error": True,
-        "Sync error": False,
-        "TxPDO State": True,
-        "TxPDO Toggle": True,
-    }
-    assert datatypes["Overrange"] == Bool()
-    assert datatypes["Limit 1"] == Int(min=0, max=3)
-    limit = BitField("Limit 1", 2, 2).datatype({0: "off", 1: "above", 2: "below"})
-    assert isinstance(limit, Enum)

@@ -22,7 +22,6 @@ from fastcs.attributes import AttrR
 from fastcs.datatypes import Int
 
 from fastcs_ethercat.ioc.alarms import Status
-from fastcs_ethercat.ioc.app import chain_changes
 from fastcs_ethercat.ioc.health import COMM, Health
 from fastcs_ethercat.ioc.plan import (
     MasterPlan,
@@ -33,6 +32,7 @@ from fastcs_ethercat.ioc.plan import (
     TerminalPlan,
 )
 from fastcs_ethercat.ioc.poller import check_write
+from fastcs_ethercat.ioc.reconnect import chain_changes
 from fastcs_ethercat.sim.process import SimProcess
 from tests.conftest import REPO_ROOT, TERMINALS_DIR
 from tests.ioc_support import (

@@ -36,7 +36,7 @@ def test_lean_imports_leave_out_unused_transports_only_while_importing() -> None
         import sys
         import setuptools_dso.runtime as runtime
         before = runtime._auto_pkg
-        from fastcs_ethercat.ioc.lean_imports import import_ioc_modules
+        from fastcs_ethercat.ioc.fastcs_adapter import import_ioc_modules
         import_ioc_modules()
         print("ca", "softioc" in sys.modules, "p4p" in sys.modules)
         print("rest", "fastcs.transports.rest" in sys.modules, "fastapi" in sys.modules)
@@ -79,7 +79,7 @@ def test_field_checks_raise_the_library_errors_and_accept_repeats() -> None:
         _BAD_FIELDS
         + textwrap.dedent(
             """
-        from fastcs_ethercat.ioc.record_checks import install_field_memo
+        from fastcs_ethercat.ioc.fastcs_adapter import install_field_memo
         library = errors("lib")
         install_field_memo()
         install_field_memo()  # idempotent

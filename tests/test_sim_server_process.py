@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import signal
 import subprocess
 import sys
@@ -62,8 +63,8 @@ def test_sigint_and_sigterm_stop_cleanly() -> None:
         process = SimProcess(DEMO_CHAIN)
         process.start()
         assert process.returncode is None
-        process._process.send_signal(signum)  # type: ignore[union-attr]
-        assert process._process.wait(10) == 0  # type: ignore[union-attr]
+        os.kill(process.pid, signum)
+        assert process.wait(10) == 0
         process.stop()
 
 

@@ -3,24 +3,16 @@
 from __future__ import annotations
 
 import os
-import signal
 import subprocess
 import sys
-import tempfile
-import threading
-import time
 from dataclasses import dataclass
 from pathlib import Path
-from types import TracebackType
-from typing import IO, Final, Self
+from typing import Final
 
 import yaml
 
 from fastcs_ethercat.loopback import EPICS_LOOPBACK_ENV
-
-READY_PREFIX: Final = "fastcs-ethercat ioc ready:"
-STOP_TIMEOUT_S: Final = 10.0
-
+from fastcs_ethercat.process import ChildProcess
 
 _LIST_WITHOUT_SIGINT: Final = (
     "import runpy, signal, sys; signal.signal(signal.SIGINT, signal.SIG_IGN); "
@@ -34,7 +26,7 @@ which costs seconds to minutes for a big IOC."""
 
 
 class IocProcessError(RuntimeError):
-    """The IOC exited or did not say it was ready in time."""
+    """`ioc --list-pvs` failed or took too long."""
 
 
 def loopback_env() -> dict[str, str]:
@@ -110,90 +102,8 @@ def list_pvs(config: Path, target: str, net_id: str, timeout: float) -> list[PvL
     return lines
 
 
-class IocProcess:
-    """The IOC serving a target; `started_at`/`ready_at` are monotonic times."""
+class IocProcess(ChildProcess):
+    """`fastcs-ethercat ioc` serving a target, on the loopback EPICS settings."""
 
     def __init__(self, config: Path, target: str, net_id: str) -> None:
-        self.args = ioc_args(config, target, net_id)
-        self._process: subprocess.Popen[str] | None = None
-        self._log: IO[str] | None = None
-        self._lines: list[str] = []
-        self.started_at = 0.0
-        self.ready_at: float | None = None
-
-    def start(self, timeout: float) -> None:
-        """Start and wait for the ready line."""
-        self._log = tempfile.TemporaryFile(  # noqa: SIM115 - lives with the process
-            "w+", prefix="ioc-", suffix=".log"
-        )
-        self.started_at = time.monotonic()
-        self._process = subprocess.Popen(
-            self.args,
-            stdin=subprocess.DEVNULL,
-            stdout=subprocess.PIPE,
-            stderr=self._log,
-            text=True,
-            env=loopback_env(),
-        )
-        threading.Thread(target=self._read_stdout, daemon=True).start()
-        deadline = self.started_at + timeout
-        while time.monotonic() < deadline:
-            if self.ready_at is not None:
-                return
-            if self._process.poll() is not None:
-                break
-            time.sleep(0.005)
-        self.stop()
-        raise IocProcessError(f"IOC not ready: {self.log_tail()}")
-
-    def _read_stdout(self) -> None:
-        process = self._process
-        assert process is not None and process.stdout is not None
-        for line in process.stdout:
-            if line.startswith(READY_PREFIX) and self.ready_at is None:
-                self.ready_at = time.monotonic()
-            self._lines.append(line.rstrip("\n"))
-
-    @property
-    def pid(self) -> int:
-        assert self._process is not None, "not started"
-        return self._process.pid
-
-    def alive(self) -> bool:
-        return self._process is not None and self._process.poll() is None
-
-    def log_tail(self, chars: int = 800) -> str:
-        if self._log is None:
-            return "\n".join(self._lines)[-chars:]
-        self._log.flush()
-        self._log.seek(0)
-        text = self._log.read()
-        self._log.seek(0, os.SEEK_END)
-        return (text + "\n".join(self._lines)).strip()[-chars:]
-
-    def stop(self) -> None:
-        """SIGTERM, then SIGKILL, by PID."""
-        process = self._process
-        if process is None:
-            return
-        if process.poll() is None:
-            process.send_signal(signal.SIGTERM)
-            try:
-                process.wait(STOP_TIMEOUT_S)
-            except subprocess.TimeoutExpired:
-                os.kill(process.pid, signal.SIGKILL)
-                process.wait(STOP_TIMEOUT_S)
-
-    def __enter__(self) -> Self:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        traceback: TracebackType | None,
-    ) -> None:
-        self.stop()
-        if self._log is not None:
-            self._log.close()
-            self._log = None
+        super().__init__(ioc_args(config, target, net_id), "ioc", env=loopback_env())

@@ -12,12 +12,11 @@ import re
 import tempfile
 import traceback
 from collections.abc import Awaitable, Callable, Collection
-from dataclasses import replace
 from pathlib import Path
 from typing import Any, Final, TypeVar
 
 from fastcs_ethercat.bench import esi_sections, ioc_sections
-from fastcs_ethercat.bench.context import BenchContext, BenchPlan
+from fastcs_ethercat.bench.context import BenchContext
 from fastcs_ethercat.bench.machine import describe_machine
 from fastcs_ethercat.bench.repeater import stop_own_repeaters
 from fastcs_ethercat.bench.report import SCAN_KEYS
@@ -152,7 +151,3 @@ def run_bench(
             return asyncio.run(run_sections(context, sections, progress))
         finally:
             stop_own_repeaters()
-
-
-def with_plan(context: BenchContext, plan: BenchPlan) -> BenchContext:
-    return replace(context, plan=plan)

@@ -56,9 +56,9 @@ def ioc_command(
     ] = False,
 ) -> None:
     """Serve every terminal of a TwinCAT target as EPICS PVs (CA and PVA)."""
-    from fastcs_ethercat.ioc.lean_imports import import_ioc_modules
+    from fastcs_ethercat.ioc.fastcs_adapter import check_installed
 
-    import_ioc_modules()
+    check_installed()
     from fastcs_ethercat.ioc import app
     from fastcs_ethercat.ioc.config import load_ioc_config
 
@@ -89,11 +89,12 @@ def demo_command(
     prefix: Annotated[str, typer.Option("--prefix", help="PV prefix.")] = "DEMO",
 ) -> None:
     """Run the simulator with the demo chain and an IOC against it (loopback)."""
-    from fastcs_ethercat.ioc.lean_imports import import_ioc_modules
+    from fastcs_ethercat.ioc.fastcs_adapter import check_installed
 
-    import_ioc_modules()
+    check_installed()
     from fastcs_ethercat.ioc import app
     from fastcs_ethercat.ioc.config import load_ioc_config
+    from fastcs_ethercat.ioc.controllers.root import RootController
     from fastcs_ethercat.sim.process import SimProcess
 
     for needed in (DEMO_CONFIG, DEMO_CHAIN):
@@ -110,10 +111,9 @@ def demo_command(
             DEMO_CONFIG,
             {"prefix": prefix, "target": sim.pyads_ip, "ams_net_id": sim.net_id},
         )
-        served: list[app.Ioc] = []
 
-        def ready() -> None:
-            entries = served[0].tree.pvs()
+        def ready(root: RootController) -> None:
+            entries = root.pvs()
             listing.write_text("".join(entry.line() + "\n" for entry in entries))
             first = next(
                 (e.name for e in entries if e.name.endswith(":AICompactCh1")),
@@ -124,7 +124,7 @@ def demo_command(
             print(f"demo: try   caget {first}")
             print("demo: Ctrl-C to stop", flush=True)
 
-        app.serve(settings, on_ready=ready, on_built=served.append)
+        app.serve(settings, on_ready=ready)
 
 
 if __name__ == "__main__":

@@ -32,8 +32,9 @@ def read_live_terminals(
     target: str, directory: Path, ams_net_id: str | None = None
 ) -> list[LiveTerminal]:
     """Discover the target once (blocking: the editor does it before serving)."""
-    from fastcs_ethercat.ioc.app import discover_system
+    from fastcs_ethercat.ioc.app import discovery
     from fastcs_ethercat.ioc.config import IocConfig
+    from fastcs_ethercat.terminals.loader import load_terminals
 
     config = IocConfig(
         prefix="EDITOR",
@@ -44,7 +45,7 @@ def read_live_terminals(
     )
 
     async def go() -> list[LiveTerminal]:
-        plan, pool = await discover_system(config)
+        plan, connection = await discovery(config, load_terminals((directory,)))()
         try:
             return [
                 LiveTerminal(t.slave.name, t.terminal_type, t.active_group)
@@ -52,7 +53,7 @@ def read_live_terminals(
                 for t in master.terminals
             ]
         finally:
-            await pool.close()
+            await connection.pool.close()
 
     try:
         return asyncio.run(go())

@@ -41,10 +41,8 @@ from fastcs.controllers import ControllerAPI
 from fastcs.transports import Transport
 
 from fastcs_ethercat.errors import UserError
-from fastcs_ethercat.ioc.fastcs_hooks import endpoints_of
+from fastcs_ethercat.ioc.fastcs_adapter import database_records
 
-ACCESS_SECURITY_CONFIG_KEY: Final = "access_security_file"
-"""IOC config key (and `--acf` flag) naming the ACF file."""
 OUTPUTS_GROUP: Final = "OUTPUTS"
 """ASG for output PVs (process data the IOC writes to terminals)."""
 COE_GROUP: Final = "COE"
@@ -137,11 +135,9 @@ def assign_access_group(
         raise RuntimeError("ASG fields must be set before the CA database loads")
     names = []
     for attribute in attributes:
-        endpoints = endpoints_of(attribute)
-        for record in (endpoints.ca_out, endpoints.ca_in if reads else None):
-            if record is not None:
-                record.ASG = group
-                names.append(str(record))
+        for record in database_records(attribute, reads=reads):
+            record.ASG = group
+            names.append(record.name)
     return names
 
 

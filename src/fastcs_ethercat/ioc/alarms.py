@@ -1,43 +1,26 @@
 """Put an attribute's PVs into alarm, or out of it, on CA and PVA at once.
 
-FastCS 0.14.4 has no alarm API for attributes, so this reaches the records and
-PVs its transports made (through `fastcs_hooks`) and republishes the same
-value with a new alarm:
+FastCS 0.14.4 has no alarm API for attributes: `fastcs_adapter` reaches the
+records and PVs its transports made and republishes the same value with a
+new alarm (CA in records processed with their held value, CA out records
+without processing, PVA with only `alarm` and `timeStamp` posted).
 
-- CA in records (`<Name>`, `<Name>_RBV`): softioc `set_alarm`, which processes
-  the record with its held value, so monitors see the new SEVR/STAT;
-- CA out records (`<Name>` of a writable attribute): alarm set without
-  processing (processing an out record would write to the device), see
-  `fastcs_hooks.set_out_record_alarm`;
-- PVA: a post of only the `alarm` and `timeStamp` fields; the value stays.
-
-Alarms are not sticky, as in an EPICS record: the next value FastCS publishes
-for the attribute (`attribute.update()` with a changed value) carries
-NO_ALARM again. So: set an alarm when a value becomes unknown and stop
-updating that attribute; when it is known again, update it and call
-`clear_alarm` (FastCS publishes nothing when the value did not change).
-
-Call from the IOC's event loop once the transports serve (PVA PVs exist only
-from then on); before that, whatever is not built yet is skipped.
+Alarms are not sticky, as in an EPICS record: the next value published for
+the attribute carries NO_ALARM again (`ioc.health` holds values back while an
+attribute is in alarm). Call from the IOC's event loop once the transports
+serve; before that, whatever is not built yet is skipped.
 """
 
 from __future__ import annotations
 
-import time
 from collections.abc import Iterable
 from dataclasses import dataclass
 from enum import IntEnum
 from typing import Any, Final
 
-import numpy as np
 from fastcs.attributes import Attribute
 
-from fastcs_ethercat.ioc.fastcs_hooks import (
-    Endpoints,
-    endpoints_of,
-    set_out_record_alarm,
-)
-from fastcs_ethercat.ioc.publish import pva_time
+from fastcs_ethercat.ioc import fastcs_adapter
 
 
 class Severity(IntEnum):
@@ -89,28 +72,9 @@ class PvaStatus(IntEnum):
     CLIENT = 7
 
 
-_DEVICE: Final = {
-    Status.READ, Status.WRITE, Status.HIHI, Status.HIGH, Status.LOLO,
-    Status.LOW, Status.STATE, Status.COS, Status.HWLIMIT,
-}  # fmt: skip
-_DRIVER: Final = {Status.COMM, Status.TIMEOUT, Status.UDF}
-_RECORD: Final = {Status.CALC, Status.SCAN, Status.LINK, Status.SOFT, Status.BAD_SUB}
-_DB: Final = {Status.DISABLE, Status.SIMM, Status.READ_ACCESS, Status.WRITE_ACCESS}
-
-
 def pva_status(status: Status) -> PvaStatus:
     """The PVA status for a CA status, grouped as the IOC's QSRV groups them."""
-    if status is Status.NO_ALARM:
-        return PvaStatus.NO_ALARM
-    for group, pva in (
-        (_DEVICE, PvaStatus.DEVICE),
-        (_DRIVER, PvaStatus.DRIVER),
-        (_RECORD, PvaStatus.RECORD),
-        (_DB, PvaStatus.DB),
-    ):
-        if status in group:
-            return pva
-    return PvaStatus.UNDEFINED
+    return PvaStatus(fastcs_adapter.pva_status(int(status)))
 
 
 @dataclass(frozen=True)
@@ -159,54 +123,8 @@ def set_alarms(
     return sum(publish_alarm(attribute, state) for attribute in attributes)
 
 
-def clear_alarms(attributes: Iterable[Attribute[Any, Any]]) -> int:
-    """`clear_alarm` for many attributes."""
-    return sum(publish_alarm(attribute, NO_ALARM) for attribute in attributes)
-
-
 def publish_alarm(attribute: Attribute[Any, Any], state: AlarmState) -> int:
     """Publish `state` on every CA record and PVA PV of `attribute`."""
-    return publish_to(endpoints_of(attribute), state)
-
-
-def publish_to(endpoints: Endpoints, state: AlarmState) -> int:
-    """Publish `state` on the records and PVs in `endpoints`; how many."""
-    reached = 0
-    if endpoints.ca_in is not None:
-        endpoints.ca_in.set_alarm(  # the time too: the record may be on device time
-            int(state.severity), int(state.status), timestamp=time.time()
-        )
-        reached += 1
-    if endpoints.ca_out is not None:
-        set_out_record_alarm(endpoints.ca_out, int(state.severity), int(state.status))
-        reached += 1
-    for pv in (endpoints.pva_read, endpoints.pva_write):
-        if pv is not None:
-            _post_pva_alarm(pv, state)
-            reached += 1
-    return reached
-
-
-def _post_pva_alarm(pv: Any, state: AlarmState) -> None:
-    """Post only alarm and time, so the value stays as FastCS last posted it."""
-    now = time.time()
-    current = pv.current()
-    if isinstance(current, np.ndarray):
-        # NTNDArray (a FastCS Waveform) wraps only arrays; its alarm has no status.
-        pv.post(
-            current,
-            severity=int(state.severity),
-            message=state.pva_message(),
-            timestamp=now,
-        )
-        return
-    pv.post(
-        {
-            "alarm": {
-                "severity": int(state.severity),
-                "status": int(pva_status(state.status)),
-                "message": state.pva_message(),
-            },
-            "timeStamp": pva_time(now),
-        }
+    return fastcs_adapter.endpoints_of(attribute).publish_alarm(
+        int(state.severity), int(state.status), state.pva_message()
     )

@@ -10,12 +10,16 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
+
 from fastcs_ethercat.ads.constants import IndexGroup
 from fastcs_ethercat.ads.errors import AdsCodecError
 from fastcs_ethercat.ads.values import TwinCatType, parse_type
 from fastcs_ethercat.ads.wire import STRING_ENCODING
 from fastcs_ethercat.ioc.clients import ClientFactory, read_text
 from fastcs_ethercat.ioc.plan import CoePoint
+
+NUMBERS = ("int", "float")
 
 
 def sdo_offset(index: int, subindex: int) -> int:
@@ -32,7 +36,10 @@ def _known_type(point: CoePoint) -> TwinCatType | None:
         parsed = parse_type(point.type_name)
     except AdsCodecError:
         return None
-    return parsed if parsed.kind in ("bool", "int", "float", "string") else None
+    if parsed.kind == "array":  # arrays of numbers (ELM3704 diagnosis texts)
+        element = parsed.element
+        return parsed if element is not None and element.kind in NUMBERS else None
+    return parsed if parsed.kind in ("bool", "string", *NUMBERS) else None
 
 
 def is_string(point: CoePoint) -> bool:
@@ -47,6 +54,9 @@ def decode_coe(point: CoePoint, raw: bytes) -> Any:
         return raw.split(b"\0", 1)[0].decode(STRING_ENCODING, errors="replace")
     if parsed is not None and parsed.kind == "bool":
         return bool(raw[0] & 1) if raw else False
+    if parsed is not None and parsed.element is not None:
+        dtype = parsed.element.dtype  # a short answer gives the elements it holds
+        return np.frombuffer(raw[: len(raw) - len(raw) % dtype.itemsize], dtype).copy()
     if parsed is not None and parsed.size == len(raw):
         return parsed.unpack(raw)
     value = int.from_bytes(raw, "little")
@@ -62,7 +72,7 @@ def encode_coe(point: CoePoint, value: Any) -> bytes:
     if parsed is not None and parsed.kind == "bool":
         return b"\x01" if bool(value) else b"\x00"
     if parsed is not None and parsed.size == size:
-        return parsed.pack(value)
+        return parsed.pack(np.asarray(value).tolist())
     number = int(value)
     if not 0 <= number < 1 << max(point.bit_size, 1):
         raise ValueError(f"{value!r} does not fit {point.bit_size} bits")

@@ -146,35 +146,6 @@ def enum_class(name: str, members: Mapping[int, str]) -> type[enum.IntEnum]:
     return enum.IntEnum(_class_name(name), labels)  # type: ignore[return-value]
 
 
-@dataclass(frozen=True)
-class BitField:
-    """A member of a status word: `count` bits starting at bit `offset`.
-
-    One-bit members become one `Bool` each; wider members (BIT2 `Limit 1`) a
-    small `Int`, or an `Enum` when the ESI names their values.
-    """
-
-    name: str
-    offset: int
-    count: int = 1
-
-    @property
-    def mask(self) -> int:
-        return (1 << self.count) - 1
-
-    def datatype(self, enum_members: Mapping[int, str] | None = None) -> DataType:
-        if enum_members is not None:
-            return Enum(enum_class(self.name, enum_members))
-        if self.count == 1:
-            return Bool()
-        return Int(min=0, max=self.mask)
-
-    def extract(self, word: int) -> bool | int:
-        """This field's value out of the whole word."""
-        value = (word >> self.offset) & self.mask
-        return bool(value) if self.count == 1 else value
-
-
 def description(text: str | None) -> str | None:
     """An attribute description that fits a record's DESC (40 bytes)."""
     if text is None:

@@ -127,22 +127,29 @@ class Health:
         if held is not None and isinstance(attribute, AttrR):
             try:
                 await self.publisher.publish(attribute, *held)
-            except Exception:
-                logger.exception("cannot post the held value of %s", attribute)
+            except Exception as error:  # one line: a flood of these is unreadable
+                logger.warning(
+                    "cannot post the held value of %s: %s", _name(attribute), error
+                )
         self._clear(attribute)
 
     def _publish(self, attribute: Attribute[Any, Any], reason: Reason) -> None:
         try:
             alarms.set_alarm(attribute, Severity.INVALID, reason.status, reason.message)
             self.published += 1
-        except Exception:  # an alarm must never stop polling
+        except Exception as error:  # an alarm must never stop polling
             self.failures += 1
-            logger.exception("cannot set the alarm of %s", attribute)
+            logger.warning("cannot set the alarm of %s: %s", _name(attribute), error)
 
     def _clear(self, attribute: Attribute[Any, Any]) -> None:
         try:
             alarms.clear_alarm(attribute)
             self.published += 1
-        except Exception:
+        except Exception as error:
             self.failures += 1
-            logger.exception("cannot clear the alarm of %s", attribute)
+            logger.warning("cannot clear the alarm of %s: %s", _name(attribute), error)
+
+
+def _name(attribute: Attribute[Any, Any]) -> str:
+    """`PREFIX.ETH1.RIO1.MOD5.Name`: short, unlike an attribute's repr."""
+    return attribute.full_name or repr(attribute)

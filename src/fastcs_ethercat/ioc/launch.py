@@ -20,7 +20,7 @@ transports serve, so a parent process knows when to look for PVs.
 from __future__ import annotations
 
 import asyncio
-from collections.abc import Awaitable, Callable, Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Final
@@ -30,7 +30,8 @@ from fastcs.controllers import Controller, ControllerAPI
 from fastcs.transports import Transport
 from fastcs.transports.epics import EpicsGUIOptions
 
-READY_PREFIX: Final = "fastcs-ethercat ioc ready:"
+from fastcs_ethercat.process import ready_line
+
 DEFAULT_CALLBACK_QUEUE_SIZE: Final = 50_000
 """Entries per EPICS callback queue; the default 2000 overflows ("ring buffer
 full") when a few thousand records change in one poll cycle."""
@@ -111,12 +112,10 @@ def build_fastcs(
     if not root.path:
         root.set_path([prefix])
     if options.ca:
-        from softioc.imports import callbackSetQueueSize
+        from fastcs_ethercat.ioc import fastcs_adapter
 
-        from fastcs_ethercat.ioc.record_checks import install_field_memo
-
-        callbackSetQueueSize(options.callback_queue_size)
-        install_field_memo()  # one record per CA PV: check repeated fields once
+        fastcs_adapter.set_callback_queue_size(options.callback_queue_size)
+        fastcs_adapter.install_field_memo()  # one record per CA PV: fields once
     transports = [*build_transports(options), _Announce(prefix, on_ready)]
     return FastCS(root, transports, loop)
 
@@ -127,24 +126,20 @@ def run(
     options: LaunchOptions,
     *,
     on_ready: Callable[[], object] | None = None,
-    loop: asyncio.AbstractEventLoop | None = None,
-    on_stop: Callable[[], Awaitable[object]] | None = None,
 ) -> None:
     """Serve until SIGINT or SIGTERM, as this process's one IOC.
 
-    Pass the `loop` that discovery ran on, so the ADS clients and the tree
-    share one loop; it is closed when serving ends, after `on_stop` ran.
+    The root's `initialise()` runs on the loop that then serves, so the ADS
+    clients and the tree share it; FastCS calls the root's `disconnect()`
+    when serving ends, then the loop is closed.
     """
-    if loop is None:
-        loop = asyncio.new_event_loop()
+    loop = asyncio.new_event_loop()
     asyncio.set_event_loop(loop)
     try:
         build_fastcs(root, prefix, options, loop, on_ready=on_ready).run(
             interactive=False
         )
     finally:
-        if on_stop is not None:
-            loop.run_until_complete(on_stop())
         loop.close()
 
 
@@ -168,17 +163,9 @@ class _Announce(Transport):
     async def serve(self) -> None:
         for _ in range(3):
             await asyncio.sleep(0)
-        print(f"{READY_PREFIX} prefix={self.prefix}", flush=True)
+        print(ready_line("ioc", prefix=self.prefix), flush=True)  # the one print
         if self.on_ready is not None:
             self.on_ready()
 
     def __repr__(self) -> str:
         return "ReadyAnnouncement()"
-
-
-def parse_ready_line(line: str) -> dict[str, str] | None:
-    """The key=value fields of a ready line, or None for any other line."""
-    if not line.startswith(READY_PREFIX):
-        return None
-    fields = line[len(READY_PREFIX) :].split()
-    return dict(item.split("=", 1) for item in fields if "=" in item)

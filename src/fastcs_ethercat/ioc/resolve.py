@@ -9,9 +9,8 @@ a generic plan: every live symbol, read-only.
 from __future__ import annotations
 
 import math
-import re
 from collections import defaultdict
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 from fastcs_ethercat.ads.client import SymbolTables
@@ -30,6 +29,7 @@ from fastcs_ethercat.ioc.plan import (
     TerminalPlan,
 )
 from fastcs_ethercat.terminals.model import CoeObject, TerminalType
+from fastcs_ethercat.terminals.names import snake_name
 from fastcs_ethercat.terminals.registry import TerminalRegistry
 from fastcs_ethercat.terminals.symbols import ExpandedSymbol, expanded_symbols
 
@@ -48,11 +48,7 @@ Types = Mapping[str, AdsDataTypeEntry]
 
 def snake_case(text: str) -> str:
     """A stable attribute name: `Frm0WcState` -> `frm0_wc_state`."""
-    text = re.sub(r"([a-z0-9])([A-Z])", r"\1_\2", text)
-    text = re.sub(r"[^0-9A-Za-z]+", "_", text).strip("_").lower()
-    if not text or text[0].isdigit():
-        text = f"n{text}"
-    return text
+    return snake_name(text, split_camel=True)
 
 
 def group_symbols(symbols: Iterable[AdsSymbolEntry]) -> dict[str, list[AdsSymbolEntry]]:
@@ -265,23 +261,11 @@ def detect_active_group(
 def chosen_symbols(
     terminal: TerminalType, symbols: Sequence[ExpandedSymbol], active: str | None
 ) -> list[ExpandedSymbol]:
-    """The symbols to serve: the selected ones of the active group (+ groupless).
-
-    When the YAML selects another group than the PLC runs, the active group's
-    symbols keep the YAML's flags, or are all served if none is selected.
-    """
-    grouped = {i for g in terminal.pdo_groups for i in g.symbol_indices}
-    free = [s for s in symbols if s.node_index not in grouped]
-    if active is None:
-        in_group: list[ExpandedSymbol] = []
-    else:
-        indices = set(terminal.group(active).symbol_indices)
-        in_group = [s for s in symbols if s.node_index in indices]
-    wanted = terminal.active_group
-    mismatch = wanted is not None and wanted.name != active
-    if mismatch and in_group and not any(s.selected for s in in_group):
-        return [s for s in free if s.selected] + in_group
-    return [s for s in free + in_group if s.selected]
+    """The symbols to serve, per channel, in the order the terminal's
+    `served_nodes` gives (the one rule of what a terminal serves)."""
+    rank = {node: k for k, node in enumerate(terminal.served_nodes(active))}
+    served = [s for s in symbols if s.node_index in rank]
+    return sorted(served, key=lambda s: rank[s.node_index])
 
 
 _TypeView = tuple[TerminalType, list[ExpandedSymbol], list[CoePoint]]
@@ -410,23 +394,36 @@ def generic_points(
     master: str, entries: Sequence[AdsSymbolEntry], types: Types
 ) -> list[Point]:
     """Every live symbol of an unknown terminal, read-only, in name order."""
+
+    def name(rest: str, member: _Member) -> str:
+        base = RUNTIME_ATTRIBUTES.get(rest) or snake_case(rest)
+        return f"{base}_{snake_case(member.path)}" if member.path else base
+
+    return _live_points(master, entries, types, name)
+
+
+def _live_points(
+    master: str,
+    entries: Sequence[AdsSymbolEntry],
+    types: Types,
+    name: Callable[[str, _Member], str],
+) -> list[Point]:
+    """Every member of `entries`, read-only, in name order; `name(rest of
+    the symbol's name, member)` names each attribute (made unique)."""
     names = _Names()
     points: list[Point] = []
     for entry in sorted(entries, key=lambda e: e.name):
         rest = entry.name.partition(".")[2]
-        base = RUNTIME_ATTRIBUTES.get(rest) or snake_case(rest)
         for member in symbol_members(entry, types):
-            attribute = f"{base}_{snake_case(member.path)}" if member.path else base
-            points.append(_point(master, entry, member, names.take(attribute)))
+            points.append(_point(master, entry, member, names.take(name(rest, member))))
     return points
 
 
 def coe_points(terminal: TerminalType) -> list[CoePoint]:
     """The YAML's selected CoE objects, one point per sub-item."""
     points: list[CoePoint] = []
-    for obj in terminal.coe_objects:
-        if obj.selected:
-            points.extend(coe_object_points(obj))
+    for obj in terminal.served_coe_objects():
+        points.extend(coe_object_points(obj))
     return points
 
 
@@ -470,14 +467,9 @@ def master_points(
     master: str, entries: Sequence[AdsSymbolEntry], types: Types
 ) -> list[Point]:
     """The master's own `Inputs` / `Outputs` members, read-only."""
-    names = _Names()
-    points: list[Point] = []
-    for entry in sorted(entries, key=lambda e: e.name):
-        rest = entry.name.partition(".")[2]
-        for member in symbol_members(entry, types):
-            attribute = snake_case(member.path or rest)
-            points.append(_point(master, entry, member, names.take(attribute)))
-    return points
+    return _live_points(
+        master, entries, types, lambda rest, member: snake_case(member.path or rest)
+    )
 
 
 def resolve_master(

@@ -13,25 +13,18 @@ ports it got in its ready line, so parallel runs never collide.
 from __future__ import annotations
 
 import json
-import os
-import signal
-import subprocess
 import sys
-import tempfile
-import threading
-import time
 import urllib.error
 import urllib.request
 from collections.abc import Sequence
 from pathlib import Path
 from types import TracebackType
-from typing import IO, Any, Final, Self
+from typing import Any, Final, Self
 from urllib.parse import quote
 
-from fastcs_ethercat.sim.runner import READY_PREFIX, parse_ready_line
+from fastcs_ethercat.process import ChildProcess, NotReadyError
 
 READY_TIMEOUT_SECONDS: Final = 60.0
-STOP_TIMEOUT_SECONDS: Final = 10.0
 HTTP_TIMEOUT_SECONDS: Final = 30.0
 
 
@@ -79,88 +72,40 @@ class SimProcess:
         self.args += list(extra_args)
         self._env = env
         self._ready_timeout = ready_timeout
-        self._process: subprocess.Popen[str] | None = None
-        self._log: IO[str] | None = None
+        self._child: ChildProcess | None = None
         self.fields: dict[str, str] = {}
 
     # -- life cycle --------------------------------------------------------------
 
     def start(self) -> None:
         """Start and wait for the ready line (raise with the log if none comes)."""
-        self._log = tempfile.TemporaryFile(  # noqa: SIM115 - lives as long as the process
-            "w+", prefix="sim-", suffix=".log"
-        )
-        self._process = subprocess.Popen(
-            self.args,
-            stdin=subprocess.PIPE,  # closed when we go: the simulator follows
-            stdout=subprocess.PIPE,
-            stderr=self._log,
-            text=True,
-            env=self._env,
-        )
-        lines: list[str] = []
-        reader = threading.Thread(
-            target=self._read_stdout, args=(self._process, lines), daemon=True
-        )
-        reader.start()
-        deadline = time.monotonic() + self._ready_timeout
-        while time.monotonic() < deadline:
-            ready = next(
-                (line for line in lines if line.startswith(READY_PREFIX)), None
-            )
-            if ready is not None:
-                self.fields = parse_ready_line(ready)
-                return
-            if self._process.poll() is not None:
-                reader.join(1)
-                break
-            time.sleep(0.02)
-        self.stop()
-        raise SimProcessError(
-            f"simulator did not get ready: {' '.join(self.args)}\n{self.log_text()}"
-        )
-
-    @staticmethod
-    def _read_stdout(process: subprocess.Popen[str], lines: list[str]) -> None:
-        """Keep reading stdout so the simulator never blocks on a full pipe."""
-        assert process.stdout is not None
-        for line in process.stdout:
-            lines.append(line.rstrip("\n"))
+        self._child = ChildProcess(self.args, "sim", env=self._env, stdin_pipe=True)
+        try:  # stdin held: the simulator exits when we go, even unsignalled
+            self.fields = self._child.start(self._ready_timeout)
+        except NotReadyError as error:
+            raise SimProcessError(str(error)) from None
 
     def stop(self) -> int | None:
         """SIGTERM (then SIGKILL) by PID; return the exit code."""
-        process = self._process
-        if process is None:
-            return None
-        if process.stdin is not None:
-            process.stdin.close()
-        if process.poll() is None:
-            process.send_signal(signal.SIGTERM)
-            try:
-                process.wait(STOP_TIMEOUT_SECONDS)
-            except subprocess.TimeoutExpired:
-                os.kill(process.pid, signal.SIGKILL)
-                process.wait(STOP_TIMEOUT_SECONDS)
-        return process.returncode
+        return None if self._child is None else self._child.stop()
 
     @property
     def pid(self) -> int:
-        assert self._process is not None, "not started"
-        return self._process.pid
+        assert self._child is not None, "not started"
+        return self._child.pid
 
     @property
     def returncode(self) -> int | None:
-        return None if self._process is None else self._process.poll()
+        return None if self._child is None else self._child.returncode
+
+    def wait(self, timeout: float) -> int:
+        """The exit code, once the simulator has exited."""
+        assert self._child is not None, "not started"
+        return self._child.wait(timeout)
 
     def log_text(self) -> str:
         """What the simulator wrote to stderr so far."""
-        if self._log is None:
-            return ""
-        self._log.flush()
-        self._log.seek(0)
-        text = self._log.read()
-        self._log.seek(0, os.SEEK_END)
-        return text
+        return "" if self._child is None else self._child.stderr_text()
 
     def __enter__(self) -> Self:
         self.start()
@@ -172,10 +117,8 @@ class SimProcess:
         exc: BaseException | None,
         traceback: TracebackType | None,
     ) -> None:
-        self.stop()
-        if self._log is not None:
-            self._log.close()
-            self._log = None
+        if self._child is not None:
+            self._child.close()
 
     # -- where it listens ----------------------------------------------------------
 

@@ -24,6 +24,9 @@ from typing import Any, Final, Protocol, Self
 
 from fastcs_ethercat.ads.constants import ADS_TCP_PORT, ADS_UDP_PORT
 from fastcs_ethercat.ads.netid import AmsNetId
+from fastcs_ethercat.process import parse_ready_line as parse_any_ready_line
+from fastcs_ethercat.process import ready_line as ready_line_of
+from fastcs_ethercat.process import ready_prefix
 from fastcs_ethercat.sim.control import (
     ControlHttpServer,
     ControllableTarget,
@@ -35,7 +38,7 @@ from fastcs_ethercat.sim.udp import UdpResponder
 
 log = logging.getLogger(__name__)
 
-READY_PREFIX: Final = "fastcs-ethercat sim ready:"
+READY_PREFIX: Final = ready_prefix("sim")
 CONTROL_HOST: Final = "127.0.0.1"
 """The control API can force values and break things: loopback only, always."""
 DEFAULT_CYCLE_SECONDS: Final = 0.010
@@ -81,18 +84,18 @@ def ready_line(endpoints: Endpoints) -> str:
         if endpoints.control_port is not None
         else "off"
     )
-    return (
-        f"{READY_PREFIX} net_id={endpoints.net_id} "
-        f"tcp={endpoints.host}:{endpoints.tcp_port} udp={udp} control={control}"
+    tcp = f"{endpoints.host}:{endpoints.tcp_port}"
+    return ready_line_of(
+        "sim", net_id=endpoints.net_id, tcp=tcp, udp=udp, control=control
     )
 
 
 def parse_ready_line(line: str) -> dict[str, str]:
     """The key=value fields of a ready line (for `SimProcess`)."""
-    if not line.startswith(READY_PREFIX):
+    fields = parse_any_ready_line(line, "sim")
+    if fields is None:
         raise ValueError(f"not a ready line: {line!r}")
-    fields = line[len(READY_PREFIX) :].split()
-    return dict(field.split("=", 1) for field in fields if "=" in field)
+    return fields
 
 
 class Simulator:

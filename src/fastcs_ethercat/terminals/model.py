@@ -380,6 +380,26 @@ class TerminalType(_Model):
         groups = self.groups_of(symbol_index)
         return not groups or self.selected_pdo_group in groups
 
+    def served_nodes(self, running_group: str | None) -> list[int]:
+        """Indices of the symbol nodes served while the PLC runs
+        `running_group`: the selected groupless ones, then the selected ones
+        of that group. When the YAML selects another group and selects none
+        of the running one, every node of the running group is served."""
+        grouped = {i for g in self.pdo_groups for i in g.symbol_indices}
+        free = [i for i in range(len(self.symbol_nodes)) if i not in grouped]
+        running = (
+            sorted(self.group(running_group).symbol_indices) if running_group else []
+        )
+        chosen = self.active_group
+        picked = [i for i in running if self.symbol_nodes[i].selected]
+        if chosen is not None and chosen.name != running_group and not picked:
+            picked = running
+        return [i for i in free if self.symbol_nodes[i].selected] + picked
+
+    def served_coe_objects(self) -> list[CoeObject]:
+        """The CoE objects served (read at start, written as SDOs)."""
+        return [obj for obj in self.coe_objects if obj.selected]
+
     def sample_count(self, node: SymbolNode) -> int:
         """How many copies of the members an instance of `node` holds."""
         if node.oversampled and self.oversampling is not None:

@@ -14,6 +14,7 @@ CHANNEL = "{channel}"
 
 _MARK = "\x00"
 _NOT_ALNUM = re.compile(r"[^0-9a-zA-Z\x00]+")
+_CAMEL_HUMP = re.compile(r"([a-z0-9])([A-Z])")
 
 
 def expand(template: str, channel: int | None) -> str:
@@ -32,14 +33,17 @@ def templatize(name: str, channel: int) -> str:
     return re.sub(rf"(?<!\d){channel}(?!\d)", CHANNEL, name)
 
 
-def snake_name(text: str) -> str:
+def snake_name(text: str, *, split_camel: bool = False) -> str:
     """A snake_case identifier for a free-text name, keeping `{channel}`.
 
     "AI Standard Channel {channel}" -> "ai_standard_channel_{channel}",
     "Ch{channel} Value" -> "ch{channel}_value", "Status__TxPDO Toggle" ->
     "status_txpdo_toggle"; a name that would start with a digit gets an `n`
-    (a channel: `ch`) in front so it stays a valid identifier.
+    (a channel: `ch`) in front so it stays a valid identifier. With
+    `split_camel` (TwinCAT's own names) "Frm0WcState" -> "frm0_wc_state".
     """
+    if split_camel:
+        text = _CAMEL_HUMP.sub(r"\1_\2", text)
     marked = text.replace(CHANNEL, _MARK)
     snaked = _NOT_ALNUM.sub("_", marked).strip("_").lower()
     if not snaked:

@@ -1,6 +1,18 @@
-"""One controller per EtherCAT master: state, slave count, frame counters.
+"""One controller per EtherCAT master: its terminals, its pollers, its writes.
 
-The master's own queries (port 0xFFFF of the device's NetId) are slow-moving
+The master owns everything between its ADS device and its attributes:
+
+- a typed map of its terminal controllers (by slave address) and of every
+  attribute a polled point feeds (by point key);
+- one `Poller` per poll rate, whose changes it posts straight to the
+  attributes through `Health` (value path: poller -> decode -> master ->
+  attribute -> publisher);
+- the write path of its outputs (`write`): checked, sent once to where the
+  live symbol is now, never queued;
+- `use_plan`, which re-resolves every point by key after a new discovery
+  (online change, reconnect): the seam where handle-based addressing goes.
+
+Its own queries (port 0xFFFF of the device's NetId) are slow-moving
 diagnostics, read once a second in one scan that also hands every slave its
 AL state, link state and CRC errors. Any failure is counted and shown, never
 raised: an exception out of a scan would pause every scan of the tree.
@@ -8,6 +20,9 @@ raised: an exception out of a scan would pause every scan of the tree.
 
 from __future__ import annotations
 
+import asyncio
+import logging
+from collections import defaultdict
 from collections.abc import Awaitable, Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any, Final
@@ -17,7 +32,13 @@ from fastcs.controllers import Controller
 from fastcs.datatypes import Bool, Int, String
 from fastcs.methods import scan
 
-from fastcs_ethercat.ads.constants import MASTER_STATE_OFFSET, EtherCatMasterGroup
+from fastcs_ethercat.ads.client import AdsError, unreachable
+from fastcs_ethercat.ads.constants import (
+    MASTER_STATE_OFFSET,
+    AmsPort,
+    EtherCatMasterGroup,
+    describe_return_code,
+)
 from fastcs_ethercat.ads.ethercat import (
     CrcCounters,
     FrameCounters,
@@ -26,16 +47,21 @@ from fastcs_ethercat.ads.ethercat import (
     decode_slave_count,
     decode_slave_states,
 )
+from fastcs_ethercat.ioc.alarms import Status
 from fastcs_ethercat.ioc.attributes import (
     PointIO,
     attribute_for_point,
     from_device,
 )
+from fastcs_ethercat.ioc.connection import Connection
 from fastcs_ethercat.ioc.controllers.post import post
 from fastcs_ethercat.ioc.controllers.terminal import TerminalController
 from fastcs_ethercat.ioc.datatypes import IntegralFloat
-from fastcs_ethercat.ioc.health import Health
-from fastcs_ethercat.ioc.plan import MasterPlan, Point
+from fastcs_ethercat.ioc.health import COMM, READ, Health
+from fastcs_ethercat.ioc.plan import MasterPlan, Point, TerminalPlan
+from fastcs_ethercat.ioc.poller import Poller, PollStats, write_point
+
+logger = logging.getLogger(__name__)
 
 DIAGNOSTICS_PERIOD_S: Final = 1.0
 CRC_EVERY: Final = 5
@@ -68,41 +94,47 @@ class MasterStatus:
 
 
 MasterReader = Callable[[], Awaitable[MasterStatus]]
+Batch = tuple[list[tuple[Point, Any]], float]
+"""One poll cycle's changes and the time of its read."""
 
 
 class MasterAds:
-    """Reads a master's diagnostics with an `AdsClient` to `<netid>:0xFFFF`."""
+    """Reads a master's diagnostics from `<netid>:0xFFFF`, through the
+    connection's client of the moment, only while the target answers."""
 
-    def __init__(self, client: Any, addresses: list[int]) -> None:
-        self.client = client
+    def __init__(
+        self, connection: Connection, net_id: str, addresses: list[int]
+    ) -> None:
+        self.connection = connection
+        self.net_id = net_id
         self.addresses = addresses
         self.reads = 0
 
     async def __call__(self) -> MasterStatus:
+        self.connection.check_readable()
+        client = await self.connection.client(self.net_id, AmsPort.ETHERCAT_MASTER)
         group = EtherCatMasterGroup
         state = decode_master_state(
-            await self.client.read(group.MASTER_STATE, MASTER_STATE_OFFSET, 2)
+            await client.read(group.MASTER_STATE, MASTER_STATE_OFFSET, 2)
         )
-        count = decode_slave_count(await self.client.read(group.SLAVE_COUNT, 0, 2))
-        frames = FrameCounters.decode(
-            await self.client.read(group.FRAME_COUNTERS, 0, 20)
-        )
+        count = decode_slave_count(await client.read(group.SLAVE_COUNT, 0, 2))
+        frames = FrameCounters.decode(await client.read(group.FRAME_COUNTERS, 0, 20))
         states = decode_slave_states(
-            await self.client.read(group.SLAVE_STATES, 0, 2 * count)
+            await client.read(group.SLAVE_STATES, 0, 2 * count)
         )
         crc: dict[int, int] = {}
         if self.reads % CRC_EVERY == 0:
-            crc = await self._crc_counters()
+            crc = await self._crc_counters(client)
         self.reads += 1
         return MasterStatus(state, count, frames, states, crc)
 
-    async def _crc_counters(self) -> dict[int, int]:
+    async def _crc_counters(self, client: Any) -> dict[int, int]:
         """Every slave's CRC errors (all ports); one read each, as the master
         answers no sum reads. A slave that does not answer is left out."""
         crc: dict[int, int] = {}
         for address in self.addresses:
             try:
-                raw = await self.client.read(
+                raw = await client.read(
                     EtherCatMasterGroup.SLAVE_CRC_COUNTERS, address, 16
                 )
             except Exception:
@@ -114,29 +146,49 @@ class MasterAds:
         return crc
 
 
+@dataclass
+class PollGroup:
+    """One poll loop of a master: the points it polls at one rate."""
+
+    rate_hz: float
+    points: list[Point]
+    poller: Poller | None = None
+
+
 class MasterController(Controller):
-    """An EtherCAT master: its counters, and the terminals below it."""
+    """An EtherCAT master: its counters, its terminals, its pollers, its writes."""
 
     def __init__(
         self,
         plan: MasterPlan,
         leaves: Mapping[str, str],
-        point_io: PointIO,
-        reader: MasterReader | None,
+        connection: Connection,
+        health: Health,
         *,
         read_only: bool = False,
-        health: Health | None = None,
     ) -> None:
-        super().__init__(description=plan.name, ios=[point_io])
+        self.point_io = PointIO(self.write)
+        super().__init__(description=plan.name, ios=[self.point_io])
         self.plan = plan
-        self.health = health or Health()
-        self.reader = reader
+        self.connection = connection
+        self.health = health
+        self.reader: MasterReader | None = MasterAds(
+            connection, plan.net_id, [t.slave.address for t in plan.terminals]
+        )
         self.terminals: dict[int, TerminalController] = {}
         """Every terminal (and coupler) controller below, by slave address."""
         self.terminal_positions: dict[int, int] = {
             t.slave.address: t.slave.position for t in plan.terminals
         }
-        self.by_key: dict[str, AttrR[Any, Any]] = {}
+        self.attributes_by_key: dict[str, AttrR[Any, Any]] = {}
+        """Every attribute a polled point feeds, terminals' included, by key."""
+        self.groups: list[PollGroup] = []
+        self.points: dict[str, Point] = {}
+        """Point key -> the point as the target has it now (offsets move)."""
+        self.symbol_port = plan.symbol_port
+        """The device's ADS port as discovered last (sum reads and writes)."""
+        self._group_of: dict[str, PollGroup] = {}
+        self._tasks: list[asyncio.Task[Any]] = []
         self.unserved: list[tuple[str, str]] = []
         self.failures = 0
         self.last_error = ""
@@ -170,18 +222,156 @@ class MasterController(Controller):
                 continue
             self.add_attribute(leaves[point.symbol], attr)
             assert isinstance(attr, AttrR)
-            self.by_key[point.key] = attr
+            self.attributes_by_key[point.key] = attr
 
-    async def apply_change(
-        self, point: Point, value: Any, stamp: float | None = None
-    ) -> None:
-        attr = self.by_key.get(point.key)
-        if attr is None:
-            return
+    def add_terminal(self, terminal: TerminalController) -> None:
+        """A terminal below this master (added to its parent by the builder)."""
+        self.terminals[terminal.plan.slave.address] = terminal
+        self.attributes_by_key.update(terminal.by_key)
+
+    # -- polling -------------------------------------------------------------------
+
+    def use_plan(
+        self, plan: MasterPlan, rate_of: Callable[[TerminalPlan | None], float]
+    ) -> tuple[list[AttrR[Any, Any]], list[AttrR[Any, Any]]]:
+        """Poll the points of `plan` (the master as discovered now) that this
+        tree serves in the same shape; (attributes gone, attributes served).
+
+        Points are matched by key, so offsets may move; bus positions are
+        taken from `plan` too (the master reports slave states by position).
+        """
+        built = {p.key: p for p in self._built_points()}
+
+        def keep(point: Point) -> bool:
+            old = built.get(point.key)
+            return (
+                point.key in self.attributes_by_key
+                and old is not None
+                and _same_shape(old, point)
+            )
+
+        by_rate: dict[float, list[Point]] = defaultdict(list)
+        by_rate[rate_of(None)] += plan.master_points
+        for terminal in plan.terminals:
+            by_rate[rate_of(terminal)] += terminal.points
+            if terminal.slave.address in self.terminal_positions:
+                self.terminal_positions[terminal.slave.address] = (
+                    terminal.slave.position
+                )
+        self.symbol_port = plan.symbol_port or self.symbol_port
+        self.groups = []
+        for rate, points in sorted(by_rate.items()):
+            kept = [p for p in points if keep(p)]
+            if kept:
+                self.groups.append(PollGroup(rate, kept))
+        self._group_of = {p.key: g for g in self.groups for p in g.points}
+        self.points = {p.key: p for g in self.groups for p in g.points}
+        gone = [a for k, a in self.attributes_by_key.items() if k not in self.points]
+        served = [a for k, a in self.attributes_by_key.items() if k in self.points]
+        return gone, served
+
+    def _built_points(self) -> list[Point]:
+        points = list(self.plan.master_points)
+        for terminal in self.terminals.values():
+            points += terminal.plan.points
+        return points
+
+    async def start_polling(self) -> None:
+        """One poller task per rate, and one task posting its changes.
+
+        The poller hands on each cycle's changes synchronously, with the time
+        of its read; they are queued and posted in order, so a slow cycle of
+        posting never runs two batches at once, and every value of one cycle
+        is published with that cycle's one timestamp.
+        """
+        client = await self.connection.client(self.connection.net_id, self.symbol_port)
+        for group in self.groups:
+            batches: asyncio.Queue[Batch] = asyncio.Queue()
+
+            def on_changes(
+                changes: list[tuple[Point, Any]],
+                stamp: float,
+                queue: asyncio.Queue[Batch] = batches,
+            ) -> None:
+                queue.put_nowait((changes, stamp))
+
+            group.poller = Poller(client, group.points, on_changes, self.note_errors)
+            self._tasks.append(asyncio.create_task(self._post_batches(batches)))
+            self._tasks.append(asyncio.create_task(group.poller.run(group.rate_hz)))
+
+    async def stop_polling(self) -> None:
+        """Stop every poller and its posting task (before the clients go)."""
+        for group in self.groups:
+            if group.poller is not None:
+                group.poller.stop()
+        tasks, self._tasks = self._tasks, []
+        for task in tasks:
+            task.cancel()
+        await asyncio.gather(*tasks, return_exceptions=True)
+
+    def poll_stats(self) -> list[PollStats]:
+        return [g.poller.stats for g in self.groups if g.poller is not None]
+
+    async def _post_batches(self, batches: asyncio.Queue[Batch]) -> None:
+        attributes, health = self.attributes_by_key, self.health
+        while True:
+            changes, stamp = await batches.get()
+            for point, value in changes:
+                attr = attributes.get(point.key)
+                if attr is None:
+                    continue
+                try:
+                    await health.post(attr, from_device(attr, value), stamp)
+                except Exception as error:  # one value must not stop the others
+                    self.failures += 1
+                    self.last_error = f"{point.symbol}: {type(error).__name__}: {error}"
+
+    def note_errors(self, errors: list[tuple[Point, int]]) -> None:
+        """Points whose read failed this cycle: only they go into alarm."""
+        by_code: dict[int, list[AttrR[Any, Any]]] = defaultdict(list)
+        for point, code in errors:
+            attr = self.attributes_by_key.get(point.key)
+            if attr is not None:
+                by_code[code].append(attr)
+        for code, attrs in by_code.items():
+            if unreachable(code):  # no answer: the target, not the point
+                reason, status = COMM, Status.COMM
+            else:
+                reason, status = READ, Status.READ
+            self.health.mark_invalid(attrs, reason, status, describe_return_code(code))
+        if len(errors) >= len(self.points):
+            self.connection.wake()  # the whole read failed: is the target there?
+
+    # -- writes --------------------------------------------------------------------
+
+    async def write(self, point: Point, value: Any) -> None:
+        """One write from a client: checked, never queued, never repeated.
+
+        Rejected while the IOC is read-only or the target is not connected;
+        the live point (offsets as the target has them now) is checked and
+        written once. An ADS error puts the PV into WRITE alarm, is logged
+        and raised.
+        """
+        self.connection.check_writable(f"write to {point.symbol}")
+        live = self.points.get(point.key)
+        group = self._group_of.get(point.key)
+        if live is None or group is None:
+            raise LookupError(f"{point.symbol} is not on the target any more")
+        client = await self.connection.client(self.connection.net_id, self.symbol_port)
         try:
-            await self.health.post(attr, from_device(attr, value), stamp)
-        except Exception:  # one value must not stop the scan
-            self.failures += 1
+            await write_point(client, live, value)
+        except AdsError as error:
+            logger.error("write of %r to %s failed: %s", value, point.symbol, error)
+            attr = self.attributes_by_key.get(point.key)
+            if attr is not None:  # after FastCS's own alarm (MAJOR) for the put
+                asyncio.get_running_loop().call_soon(
+                    self.health.write_failed, attr, str(error)
+                )
+            raise
+        if group.poller is not None:
+            group.poller.invalidate()  # the readback shows what the PLC holds
+
+    # -- diagnostics ---------------------------------------------------------------
 
     @scan(DIAGNOSTICS_PERIOD_S)
     async def read_diagnostics(self) -> None:
@@ -228,13 +418,29 @@ class MasterController(Controller):
                 self.failures += 1
 
     def target_attributes(self) -> list[AttrR[Any, Any]]:
-        """What goes invalid when the target is lost (not what the IOC knows)."""
+        """What goes invalid when the target is lost (not what the IOC knows):
+        this master's points and diagnostics, and its terminals'."""
         own = {"NetId", "ExpectedSlaves", "Online", "DiagErrors"}
-        diag = [attr for leaf, attr in self.attrs.items() if leaf not in own]
-        return [*self.by_key.values(), *diag]
+        found = [attr for leaf, attr in self.attrs.items() if leaf not in own]
+        found += [self.attributes_by_key[p.key] for p in self.plan.master_points
+                  if p.key in self.attributes_by_key]  # fmt: skip
+        for terminal in self.terminals.values():
+            found += terminal.target_attributes()
+        return found
 
     async def _safe_post(self, leaf: str, value: Any) -> None:
         try:
             await post(self.attrs[leaf], value)
         except Exception:
             self.failures += 1
+
+
+def _same_shape(old: Point, new: Point) -> bool:
+    """The attribute made for `old` can serve `new` (same type, same form)."""
+    return (
+        old.type_name == new.type_name
+        and old.kind is new.kind
+        and old.length == new.length
+        and old.bit_size == new.bit_size
+        and old.writable == new.writable
+    )

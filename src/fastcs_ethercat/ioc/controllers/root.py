@@ -1,12 +1,20 @@
-"""The root controller: connection state, PLC and device info, statistics.
+"""The root controller: start-up (discovery, the tree), the link, statistics.
 
-Statistics come from the pollers through a `StatsSource` the app supplies,
-read once a second; nothing here raises out of its scan.
+FastCS calls `initialise()` before it builds the transports: the root finds
+its plan there (`PlanSource`: discovery on the live target by default; a
+cached or configured chain can stand in, the seam for booting without the
+PLC), names every PV at once and builds one `MasterController` per master
+below it. Once the transports serve, `start()` hands over to the
+`Reconnection` component (pollers, supervisor, CoE reads); FastCS's
+`disconnect()` stops it all. Statistics come from the masters' pollers and
+the supervisor, read once a second; nothing here raises out of its scan.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+import logging
+import time
+from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 from typing import Any, Final
 
@@ -15,9 +23,27 @@ from fastcs.controllers import Controller
 from fastcs.datatypes import Bool, Int, String
 from fastcs.methods import scan
 
+from fastcs_ethercat.ioc.alarms import Status
+from fastcs_ethercat.ioc.config import IocConfig
+from fastcs_ethercat.ioc.connection import Connection
+from fastcs_ethercat.ioc.controllers.master import MasterController
 from fastcs_ethercat.ioc.controllers.post import post
+from fastcs_ethercat.ioc.controllers.terminal import COE_READ, TerminalController
+from fastcs_ethercat.ioc.controllers.tree import (
+    PvEntry,
+    build_masters,
+    pv_entries,
+    pv_requests,
+    slave_path,
+)
 from fastcs_ethercat.ioc.datatypes import ExactFloat
-from fastcs_ethercat.ioc.plan import SystemPlan
+from fastcs_ethercat.ioc.health import Health
+from fastcs_ethercat.ioc.naming import PvNames, PvRequest, alias_key, plan_pv_names
+from fastcs_ethercat.ioc.plan import MasterPlan, SystemPlan, TerminalPlan
+from fastcs_ethercat.ioc.reconnect import Reconnection
+from fastcs_ethercat.terminals.registry import TerminalRegistry
+
+logger = logging.getLogger(__name__)
 
 STATS_PERIOD_S: Final = 1.0
 ROOT_LEAVES: Final = (
@@ -43,110 +69,204 @@ ROOT_LEAVES: Final = (
     "InvalidPvs",
 )
 
+PlanSource = Callable[[], Awaitable[tuple[SystemPlan, Connection]]]
+"""What the root serves and how it reaches the target: discovery by default."""
 
-@dataclass(frozen=True)
-class PollStats:
-    """What the pollers report, summed over all masters."""
 
-    connected: bool = False
-    cycle_time_ms: float = 0.0
-    """Duration of the last poll cycle (slowest master)."""
-    poll_rate_hz: float = 0.0
+@dataclass
+class RateTracker:
+    """Turns the pollers' running totals into per-second rates."""
+
+    last_time: float = 0.0
+    last_cycles: int = 0
+    last_requests: int = 0
+    cycles_per_second: float = 0.0
     requests_per_second: float = 0.0
-    errors: int = 0
-    last_error: str = ""
-    state: str = "CONNECTED"
-    """The supervisor's view: CONNECTED, DISCONNECTED, STOPPED, RESYNCING."""
-    reconnects: int = 0
-    last_recovery_s: float = 0.0
-    chain_changes: str = ""
-    invalid: int = 0
-    """Attributes in INVALID alarm now."""
-    symbol_version: int = -1
-    """The symbol version served now (-1: unknown)."""
 
-
-StatsSource = Callable[[], PollStats]
+    def update(self, now: float, cycles: int, requests: int) -> None:
+        elapsed = now - self.last_time
+        restarted = cycles < self.last_cycles or requests < self.last_requests
+        if self.last_time and elapsed > 0 and not restarted:  # new pollers: skip
+            self.cycles_per_second = (cycles - self.last_cycles) / elapsed
+            self.requests_per_second = (requests - self.last_requests) / elapsed
+        self.last_time, self.last_cycles, self.last_requests = now, cycles, requests
 
 
 class RootController(Controller):
-    """`<prefix>`: the target and how the IOC is doing."""
+    """`<prefix>`: the target, its masters below, and how the IOC is doing."""
 
     def __init__(
         self,
-        prefix: str,
-        plan: SystemPlan,
-        target: str,
-        leaves: Mapping[str, str] | None = None,
-        stats: StatsSource | None = None,
+        config: IocConfig,
+        plan_source: PlanSource,
+        registry: TerminalRegistry | None = None,
     ) -> None:
-        super().__init__(description=f"EtherCAT on {plan.device_name or target}")
-        self.set_path([prefix])
-        self.plan = plan
-        self.target = target
-        self.stats = stats
+        super().__init__(description=f"EtherCAT on {config.target}")
+        self.set_path([config.prefix])
+        self.config = config
+        self.plan_source = plan_source
+        self.registry = registry
+        """The terminal YAML, kept for discoveries after a reconnect."""
+        self.health = Health()
+        self.masters: list[MasterController] = []
+        self.attrs: dict[str, AttrR[Any, Any]] = {}
         self.pv_count = 0
         self.unserved = 0
-        names = {leaf: leaf for leaf in ROOT_LEAVES} | dict(leaves or {})
-        terminals = sum(len(master.terminals) for master in plan.masters)
-        self.attrs: dict[str, AttrR[Any, Any]] = {
-            "Connected": AttrR(Bool(), description="Polling the target"),
-            "Target": _fixed(String(), target, "ADS host[:port]"),
-            "NetId": _fixed(String(), plan.net_id, "AMS NetId of the target"),
-            "DeviceName": _fixed(String(), plan.device_name, "TwinCAT device name"),
-            "DeviceVersion": _fixed(String(), plan.device_version, "TwinCAT version"),
-            "SymbolVersion": _fixed(Int(), plan.symbol_version, "Symbol table version"),
-            "Masters": _fixed(Int(), len(plan.masters), "EtherCAT masters served"),
-            "Terminals": _fixed(Int(), terminals, "Terminals served"),
-            "PvCount": AttrR(Int(), description="PVs served (CA names)"),
-            "Unserved": AttrR(Int(), description="Points with no PV (see log)"),
-            "PollCycleTime": AttrR(
-                ExactFloat(units="ms", prec=2), description="Last poll cycle"
-            ),
-            "PollRate": AttrR(
-                ExactFloat(units="Hz", prec=1), description="Poll cycles per second"
-            ),
-            "AdsRequestRate": AttrR(
-                ExactFloat(units="1/s", prec=1), description="ADS requests per second"
-            ),
-            "PollErrors": AttrR(Int(), description="Failed poll reads"),
-            "LastError": AttrR(String(), description="Last ADS error"),
-            "ConnectionState": AttrR(String(), description="Link to the target"),
-            "Reconnects": AttrR(Int(), description="Reconnects and resyncs"),
-            "LastRecovery": AttrR(
-                ExactFloat(units="s", prec=2), description="Last outage, loss to poll"
-            ),
-            "ChainChanges": AttrR(String(), description="Chain change at reconnect"),
-            "InvalidPvs": AttrR(Int(), description="Attributes in INVALID alarm"),
-        }
-        for leaf, attr in self.attrs.items():
-            self.add_attribute(names[leaf], attr)
+        self.rates = RateTracker()
+        self._plan: SystemPlan | None = None
+        self._names: PvNames | None = None
+        self._reconnection: Reconnection | None = None
 
-    @scan(STATS_PERIOD_S)
-    async def read_stats(self) -> None:
-        """Copy the pollers' statistics; never raises."""
-        if self.stats is None:
+    @property
+    def plan(self) -> SystemPlan:
+        """The plan the tree was built for."""
+        assert self._plan is not None, "not initialised"
+        return self._plan
+
+    @property
+    def names(self) -> PvNames:
+        assert self._names is not None, "not initialised"
+        return self._names
+
+    @property
+    def reconnection(self) -> Reconnection:
+        assert self._reconnection is not None, "not initialised"
+        return self._reconnection
+
+    # -- start-up ------------------------------------------------------------------
+
+    async def initialise(self) -> None:
+        """Find the plan and build the tree (FastCS calls this before serving)."""
+        if self._plan is not None:
             return
-        try:
-            stats = self.stats()
-            a = self.attrs
-            await post(a["PvCount"], self.pv_count)
-            await post(a["Unserved"], self.unserved)
-            await post(a["Connected"], stats.connected)
-            await post(a["PollCycleTime"], stats.cycle_time_ms)
-            await post(a["PollRate"], stats.poll_rate_hz)
-            await post(a["AdsRequestRate"], stats.requests_per_second)
-            await post(a["PollErrors"], min(stats.errors, 2**31 - 1))
-            await post(a["LastError"], stats.last_error[:200])
-            await post(a["ConnectionState"], stats.state)
-            await post(a["Reconnects"], min(stats.reconnects, 2**31 - 1))
-            await post(a["LastRecovery"], stats.last_recovery_s)
-            await post(a["ChainChanges"], stats.chain_changes[:200])
-            await post(a["InvalidPvs"], min(stats.invalid, 2**31 - 1))
-            if stats.symbol_version >= 0:
-                await post(a["SymbolVersion"], stats.symbol_version)
-        except Exception:  # a scan must never raise
-            pass
+        plan, connection = await self.plan_source()
+        self.build(plan, connection)
+        shortened = self.names.shortened
+        for warning in self.warnings(with_shortened=False):
+            logger.warning("%s", warning)
+        for shortening in shortened:  # thousands with every CoE object selected
+            logger.debug("PV name shortened: %s", shortening)
+        if shortened:
+            logger.warning(
+                "%d PV names shortened to fit 60 characters (details at debug level,"
+                " or `ioc --list-pvs`)",
+                len(shortened),
+            )
+        logger.info(
+            "%d master(s), %d terminals, %d PVs",
+            len(plan.masters),
+            sum(len(m.terminals) for m in plan.masters),
+            self.pv_count,
+        )
+
+    def build(self, plan: SystemPlan, connection: Connection) -> None:
+        """The attributes of the root and every controller below, for `plan`."""
+        config = self.config
+        self._plan = plan
+        self._names = names = plan_pv_names(
+            config.prefix, pv_requests(plan, ROOT_LEAVES), config.pv_aliases
+        )
+        self.attrs = _root_attributes(plan, config.target)
+        for leaf, attr in self.attrs.items():
+            self.add_attribute(names.leaves[PvRequest((), leaf)], attr)
+        self.masters = build_masters(
+            self, plan, names, connection, self.health, read_only=config.read_only
+        )
+        self._reconnection = Reconnection(self, connection, plan, self.registry)
+        self.use_plan(plan)
+        self.pv_count = len(self.pvs())
+        self.unserved = len(self.unserved_points())
+
+    def use_plan(
+        self, plan: SystemPlan
+    ) -> tuple[list[AttrR[Any, Any]], list[AttrR[Any, Any]]]:
+        """Every master polls what `plan` (a discovery) has of its points;
+        (attributes gone from the target, attributes served)."""
+        by_name = {m.name: m for m in plan.masters}
+        gone: list[AttrR[Any, Any]] = []
+        served: list[AttrR[Any, Any]] = []
+        for controller in self.masters:
+            live = by_name.get(controller.plan.name) or MasterPlan(
+                controller.plan.device_id, controller.plan.name, "", 0
+            )
+            lost, kept = controller.use_plan(live, self._rate_of(live))
+            gone += lost
+            served += kept
+        return gone, served
+
+    def _rate_of(self, master: MasterPlan) -> Callable[[TerminalPlan | None], float]:
+        """A terminal's poll rate: by its TwinCAT name or path, else the IOC's."""
+        config = self.config
+
+        def rate(terminal: TerminalPlan | None) -> float:
+            if terminal is None:
+                return config.poll_rate_hz
+            if terminal.poll_rate_hz is not None:
+                return terminal.poll_rate_hz
+            path = [node.name for node in slave_path(master, terminal)]
+            return 1.0 / config.poll_period(terminal.slave.name, alias_key(path))
+
+        return rate
+
+    # -- what it serves ------------------------------------------------------------
+
+    def terminals(self) -> list[TerminalController]:
+        """Every terminal controller, master by master, in bus order."""
+        return [t for master in self.masters for t in master.terminals.values()]
+
+    def target_attributes(self) -> list[AttrR[Any, Any]]:
+        """Every attribute whose value comes from the target (not the IOC)."""
+        return [a for master in self.masters for a in master.target_attributes()]
+
+    def pvs(self) -> list[PvEntry]:
+        """Every PV the tree serves (CA names), sorted by name."""
+        return pv_entries(self)
+
+    def unserved_points(self) -> list[tuple[str, str]]:
+        """(source, reason) of every point that got no PV."""
+        found: list[tuple[str, str]] = []
+        for master in self.masters:
+            found += master.unserved
+            for terminal in master.terminals.values():
+                found += terminal.unserved
+        return found
+
+    def warnings(self, *, with_shortened: bool = True) -> list[str]:
+        """Everything a user should know about: nothing is dropped silently."""
+        plan = self.plan
+        found = list(plan.warnings)
+        for master in plan.masters:
+            for terminal in master.terminals:
+                found += [
+                    w
+                    if w.startswith(terminal.slave.name)
+                    else f"{terminal.slave.name}: {w}"
+                    for w in terminal.warnings
+                ]
+        if with_shortened:
+            found += [f"PV name shortened: {s}" for s in self.names.shortened]
+        found += [f"alias matches nothing: {k}" for k in self.names.unused_aliases]
+        found += [f"no PV for {src}: {why}" for src, why in self.unserved_points()]
+        return list(dict.fromkeys(found))
+
+    # -- serving -------------------------------------------------------------------
+
+    def start(self) -> None:
+        """The transports serve: poll, supervise, read the CoE values.
+
+        CoE values are read now that every PV serves, not before: thousands
+        of SDO uploads (mailbox round trips on a real bus) would hold up the
+        start. Until read, each is INVALID (UDF).
+        """
+        self.health.publisher.start()
+        coe = [a for t in self.terminals() for a in t.coe_attributes]
+        self.health.mark_invalid(coe, COE_READ, Status.UDF, "not read yet")
+        self.reconnection.start()
+
+    async def disconnect(self) -> None:
+        """Stop supervising and polling and close every ADS connection."""
+        if self._reconnection is not None:
+            await self._reconnection.stop()
 
     async def show_link(self, state: str, error: str) -> None:
         """Publish a change of the link at once, not at the next scan."""
@@ -157,7 +277,87 @@ class RootController(Controller):
             if error:
                 await post(a["LastError"], error[:200])
         except Exception:  # never stop the caller (the supervisor)
-            pass
+            logger.debug("cannot show the link state", exc_info=True)
+
+    @scan(STATS_PERIOD_S)
+    async def read_stats(self) -> None:
+        """Copy the pollers' and the supervisor's figures; never raises."""
+        if self._reconnection is None:
+            return
+        try:
+            await self._post_stats()
+        except Exception:  # a scan must never raise
+            logger.debug("cannot post the statistics", exc_info=True)
+
+    async def _post_stats(self) -> None:
+        stats = [s for master in self.masters for s in master.poll_stats()]
+        self.rates.update(
+            time.monotonic(),
+            sum(s.cycles for s in stats),
+            sum(s.requests for s in stats),
+        )
+        link = self.reconnection.supervisor.stats
+        connected = self.reconnection.connection.connected
+        errors = [s.last_error for s in stats if s.last_error]
+        last_error = errors[0] if errors else ""
+        if not connected or not last_error:
+            last_error = link.last_error
+        a = self.attrs
+        await post(a["PvCount"], self.pv_count)
+        await post(a["Unserved"], self.unserved)
+        await post(
+            a["Connected"],
+            connected and bool(stats) and all(s.cycles > 0 for s in stats),
+        )
+        await post(
+            a["PollCycleTime"],
+            1000.0 * max((s.last_cycle_s for s in stats), default=0.0),
+        )
+        await post(a["PollRate"], self.rates.cycles_per_second)
+        await post(a["AdsRequestRate"], self.rates.requests_per_second)
+        errors_total = sum(s.errors + s.item_errors for s in stats)
+        await post(a["PollErrors"], min(errors_total, 2**31 - 1))
+        await post(a["LastError"], last_error[:200])
+        await post(a["ConnectionState"], str(link.state))
+        await post(a["Reconnects"], min(link.reconnects + link.resyncs, 2**31 - 1))
+        await post(a["LastRecovery"], link.last_recovery_s)
+        await post(a["ChainChanges"], self.reconnection.chain_changes[:200])
+        await post(a["InvalidPvs"], min(self.health.invalid_count, 2**31 - 1))
+        await post(a["SymbolVersion"], self.reconnection.live.symbol_version)
+
+
+def _root_attributes(plan: SystemPlan, target: str) -> dict[str, AttrR[Any, Any]]:
+    terminals = sum(len(master.terminals) for master in plan.masters)
+    return {
+        "Connected": AttrR(Bool(), description="Polling the target"),
+        "Target": _fixed(String(), target, "ADS host[:port]"),
+        "NetId": _fixed(String(), plan.net_id, "AMS NetId of the target"),
+        "DeviceName": _fixed(String(), plan.device_name, "TwinCAT device name"),
+        "DeviceVersion": _fixed(String(), plan.device_version, "TwinCAT version"),
+        "SymbolVersion": _fixed(Int(), plan.symbol_version, "Symbol table version"),
+        "Masters": _fixed(Int(), len(plan.masters), "EtherCAT masters served"),
+        "Terminals": _fixed(Int(), terminals, "Terminals served"),
+        "PvCount": AttrR(Int(), description="PVs served (CA names)"),
+        "Unserved": AttrR(Int(), description="Points with no PV (see log)"),
+        "PollCycleTime": AttrR(
+            ExactFloat(units="ms", prec=2), description="Last poll cycle"
+        ),
+        "PollRate": AttrR(
+            ExactFloat(units="Hz", prec=1), description="Poll cycles per second"
+        ),
+        "AdsRequestRate": AttrR(
+            ExactFloat(units="1/s", prec=1), description="ADS requests per second"
+        ),
+        "PollErrors": AttrR(Int(), description="Failed poll reads"),
+        "LastError": AttrR(String(), description="Last ADS error"),
+        "ConnectionState": AttrR(String(), description="Link to the target"),
+        "Reconnects": AttrR(Int(), description="Reconnects and resyncs"),
+        "LastRecovery": AttrR(
+            ExactFloat(units="s", prec=2), description="Last outage, loss to poll"
+        ),
+        "ChainChanges": AttrR(String(), description="Chain change at reconnect"),
+        "InvalidPvs": AttrR(Int(), description="Attributes in INVALID alarm"),
+    }
 
 
 def _fixed(datatype: Any, value: Any, text: str) -> AttrR[Any, Any]:

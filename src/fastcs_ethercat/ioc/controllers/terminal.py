@@ -1,10 +1,10 @@
 """One controller per EtherCAT slave: its selected symbols, diagnostics, CoE.
 
-Symbols arrive as changed values from the master's poller (`apply_change`);
-diagnostics (AL state, link state, CRC errors) from the master controller's
-slow scan (`set_diagnostics`); CoE objects are read once at start and again
-when `CoeRefresh` is pressed, never polled. Nothing here raises out of a scan
-or a push: a bad value marks only its own point as failed.
+Symbols arrive as changed values from the master's poller, posted by the
+master straight to the attributes in `by_key`; diagnostics (AL state, link
+state, CRC errors) from the master controller's slow scan
+(`set_diagnostics`); CoE objects are read once at start and again when
+`CoeRefresh` is pressed, never polled. Nothing here raises out of a scan.
 """
 
 from __future__ import annotations
@@ -123,10 +123,10 @@ class TerminalController(Controller):
         if coe_io is not None:
             coe_io.read_back = self.read_coe
         self.by_key: dict[str, AttrR[Any, Any]] = {}
+        """Point key -> the attribute it feeds (the master posts to it)."""
         self.coe_attributes: list[AttrR[Any, Any]] = []
         self.unserved: list[tuple[str, str]] = []
         """(source, reason) of every point this terminal could not serve."""
-        self.failed_points: dict[str, str] = {}
         for point in plan.points:
             self._add_point(point, leaves, read_only)
         for coe in plan.coe if coe_io is not None else ():
@@ -170,19 +170,6 @@ class TerminalController(Controller):
         self.add_attribute(leaves[coe_leaf(coe.attribute)], attr)
         assert isinstance(attr, AttrR)
         self.coe_attributes.append(attr)
-
-    async def apply_change(
-        self, point: Point, value: Any, stamp: float | None = None
-    ) -> None:
-        """Post one changed value of one of this terminal's points."""
-        attr = self.by_key.get(point.key)
-        if attr is None:
-            return
-        try:
-            await self.health.post(attr, from_device(attr, value), stamp)
-            self.failed_points.pop(point.key, None)
-        except Exception as error:  # one value must not stop the scan
-            self.failed_points[point.key] = f"{type(error).__name__}: {error}"
 
     async def set_diagnostics(self, state: SlaveState | None, crc: int | None) -> None:
         """Post the master's view of this slave (None: not reported this time).

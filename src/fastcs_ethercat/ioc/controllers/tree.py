@@ -1,10 +1,10 @@
-"""A `SystemPlan` -> the whole controller tree, with planned PV names.
+"""A `SystemPlan` -> the controllers below the root, with planned PV names.
 
 Levels: root `<prefix>`, one `MasterController` per master, one controller
 per coupler (a terminal controller that also holds the terminals behind it)
 and one per terminal. Every name comes from `naming.plan_pv_names`, which is
-given every leaf of every controller at once, so the names are deterministic
-for a plan and every shortening is reported.
+given every leaf of every controller at once (`pv_requests`), so the names
+are deterministic for a plan and every shortening is reported.
 
 Built top-down: FastCS copies a controller's path into a sub-controller when
 it is added, so a controller is attached before its own children are.
@@ -12,28 +12,17 @@ it is added, so a controller is attached before its own children are.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator, Mapping
-from dataclasses import dataclass, field
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 from fastcs.attributes import Attribute, AttrR, AttrRW, AttrW
 from fastcs.controllers import BaseController, Controller
 
-from fastcs_ethercat.ioc.attributes import (
-    CoeIO,
-    CoeReader,
-    CoeRef,
-    CoeWriter,
-    PointIO,
-    PointRef,
-    PointWriter,
-)
-from fastcs_ethercat.ioc.controllers.master import (
-    MASTER_LEAVES,
-    MasterController,
-    MasterReader,
-)
-from fastcs_ethercat.ioc.controllers.root import ROOT_LEAVES, RootController
+from fastcs_ethercat.ioc.attributes import CoeIO, CoeRef, PointRef
+from fastcs_ethercat.ioc.coe import SlaveCoe
+from fastcs_ethercat.ioc.connection import Connection
+from fastcs_ethercat.ioc.controllers.master import MASTER_LEAVES, MasterController
 from fastcs_ethercat.ioc.controllers.terminal import (
     COE_REFRESH_LEAF,
     DIAGNOSTIC_LEAVES,
@@ -48,13 +37,14 @@ from fastcs_ethercat.ioc.naming import (
     NodeKind,
     PvNames,
     PvRequest,
-    plan_pv_names,
 )
-from fastcs_ethercat.ioc.plan import MasterPlan, Point, SystemPlan, TerminalPlan
-
-CoeAccess = Callable[[MasterPlan, TerminalPlan], tuple[CoeReader, CoeWriter] | None]
-"""SDO reader and writer of one slave (None: no CoE access, e.g. in tests)."""
-MasterReaderFactory = Callable[[MasterPlan], MasterReader | None]
+from fastcs_ethercat.ioc.plan import (
+    CoePoint,
+    MasterPlan,
+    Point,
+    SystemPlan,
+    TerminalPlan,
+)
 
 
 @dataclass(frozen=True)
@@ -68,49 +58,6 @@ class PvEntry:
 
     def line(self) -> str:
         return f"{self.name} {self.access} {self.datatype} {self.source}"
-
-
-@dataclass
-class Tree:
-    """The built tree and what the app needs to feed it."""
-
-    root: RootController
-    names: PvNames
-    masters: list[MasterController] = field(default_factory=list)
-    sinks: dict[str, Any] = field(default_factory=dict)
-    """Point key -> the controller whose `apply_change` posts it."""
-    health: Health = field(default_factory=Health)
-
-    def attribute(self, key: str) -> AttrR[Any, Any] | None:
-        """The attribute serving point `key`, if any."""
-        sink = self.sinks.get(key)
-        return None if sink is None else sink.by_key.get(key)
-
-    def terminals(self) -> list[TerminalController]:
-        """Every terminal controller, master by master, in bus order."""
-        return [t for master in self.masters for t in master.terminals.values()]
-
-    def target_attributes(self) -> list[AttrR[Any, Any]]:
-        """Every attribute whose value comes from the target (not the IOC)."""
-        found: list[AttrR[Any, Any]] = []
-        for master in self.masters:
-            found += master.target_attributes()
-            for terminal in master.terminals.values():
-                found += terminal.target_attributes()
-        return found
-
-    def pvs(self) -> list[PvEntry]:
-        """Every PV the tree serves (CA names), sorted by name."""
-        return sorted(_walk(self.root), key=lambda entry: entry.name)
-
-    def unserved(self) -> list[tuple[str, str]]:
-        """(source, reason) of every point that got no PV."""
-        found: list[tuple[str, str]] = []
-        for master in self.masters:
-            found += master.unserved
-            for terminal in master.terminals.values():
-                found += terminal.unserved
-        return found
 
 
 def slave_path(master: MasterPlan, terminal: TerminalPlan) -> tuple[Node, ...]:
@@ -138,9 +85,9 @@ def terminal_leaves(terminal: TerminalPlan) -> list[str]:
     return leaves
 
 
-def pv_requests(plan: SystemPlan) -> list[PvRequest]:
+def pv_requests(plan: SystemPlan, root_leaves: Sequence[str]) -> list[PvRequest]:
     """Every attribute of the tree, for `plan_pv_names`."""
-    requests = [PvRequest((), leaf) for leaf in ROOT_LEAVES]
+    requests = [PvRequest((), leaf) for leaf in root_leaves]
     for master in plan.masters:
         top = (Node(NodeKind.MASTER, master.name),)
         requests += [PvRequest(top, leaf) for leaf in MASTER_LEAVES]
@@ -151,49 +98,33 @@ def pv_requests(plan: SystemPlan) -> list[PvRequest]:
     return requests
 
 
-def build_tree(
+def build_masters(
+    root: BaseController,
     plan: SystemPlan,
-    prefix: str,
+    names: PvNames,
+    connection: Connection,
+    health: Health,
     *,
-    target: str,
-    writer: PointWriter,
-    aliases: Mapping[str, str] | None = None,
-    coe_access: CoeAccess | None = None,
-    master_reader: MasterReaderFactory | None = None,
     read_only: bool = False,
-    health: Health | None = None,
-) -> Tree:
-    """The controller tree of `plan`, named under `prefix`."""
-    names = plan_pv_names(prefix, pv_requests(plan), aliases)
-    root_leaves = {leaf: names.leaves[PvRequest((), leaf)] for leaf in ROOT_LEAVES}
-    root = RootController(prefix, plan, target, root_leaves)
-    tree = Tree(root, names, health=health or Health())
-    point_io = PointIO(writer)
+) -> list[MasterController]:
+    """A controller per master of `plan` under `root`, with every terminal."""
+    masters: list[MasterController] = []
     for master in plan.masters:
         top = (Node(NodeKind.MASTER, master.name),)
         leaves = _leaves(names, top, [*MASTER_LEAVES, *_symbols(master.master_points)])
-        reader = master_reader(master) if master_reader is not None else None
         controller = MasterController(
-            master, leaves, point_io, reader, read_only=read_only, health=tree.health
+            master, leaves, connection, health, read_only=read_only
         )
         root.add_sub_controller(names.controllers[top], controller)
-        tree.masters.append(controller)
-        for point in master.master_points:
-            tree.sinks[point.key] = controller
-        _add_terminals(tree, master, controller, point_io, coe_access, read_only)
-    root.pv_count = sum(1 for _ in _walk(root))
-    root.unserved = len(tree.unserved())
-    return tree
+        _add_terminals(controller, names, read_only)
+        masters.append(controller)
+    return masters
 
 
 def _add_terminals(
-    tree: Tree,
-    master: MasterPlan,
-    master_controller: MasterController,
-    point_io: PointIO,
-    coe_access: CoeAccess | None,
-    read_only: bool,
+    master_controller: MasterController, names: PvNames, read_only: bool
 ) -> None:
+    master = master_controller.plan
     by_path: dict[tuple[Node, ...], BaseController] = {
         (Node(NodeKind.MASTER, master.name),): master_controller
     }
@@ -205,9 +136,7 @@ def _add_terminals(
         path = slave_path(master, terminal)
         parent = by_path.get(path[:-1])
         if parent is None:  # a coupler the master did not list: a bare level
-            parent = _bare_coupler(tree, by_path, path[:-1])
-        access = coe_access(master, terminal) if coe_access is not None else None
-        coe_io = CoeIO(*access) if access is not None else None
+            parent = _bare_coupler(names, by_path, path[:-1])
         kind = (
             TerminalController
             if terminal.terminal_type is not None
@@ -215,24 +144,43 @@ def _add_terminals(
         )
         controller = kind(
             terminal,
-            _leaves(tree.names, path, terminal_leaves(terminal)),
-            point_io,
-            coe_io,
+            _leaves(names, path, terminal_leaves(terminal)),
+            master_controller.point_io,
+            _coe_io(master_controller.connection, master, terminal),
             read_only=read_only,
-            health=tree.health,
+            health=master_controller.health,
         )
-        parent.add_sub_controller(tree.names.controllers[path], controller)
+        parent.add_sub_controller(names.controllers[path], controller)
         by_path[path] = controller
-        master_controller.terminals[terminal.slave.address] = controller
-        for point in terminal.points:
-            tree.sinks[point.key] = controller
+        master_controller.add_terminal(controller)
+
+
+def _coe_io(
+    connection: Connection, master: MasterPlan, terminal: TerminalPlan
+) -> CoeIO | None:
+    """SDO access of one slave; refused while the target is away (or read-only)."""
+    if not terminal.coe:
+        return None
+    sdo = SlaveCoe(connection.client, master.net_id, terminal.slave.address)
+
+    async def read(coe: CoePoint) -> Any:
+        connection.check_readable()
+        return await sdo.read(coe)
+
+    async def write(coe: CoePoint, value: Any) -> None:
+        connection.check_writable("SDO write")
+        await sdo.write(coe, value)
+
+    return CoeIO(read, write)
 
 
 def _bare_coupler(
-    tree: Tree, by_path: dict[tuple[Node, ...], BaseController], path: tuple[Node, ...]
+    names: PvNames,
+    by_path: dict[tuple[Node, ...], BaseController],
+    path: tuple[Node, ...],
 ) -> BaseController:
     controller = Controller(description=path[-1].name)
-    by_path[path[:-1]].add_sub_controller(tree.names.controllers[path], controller)
+    by_path[path[:-1]].add_sub_controller(names.controllers[path], controller)
     by_path[path] = controller
     return controller
 
@@ -245,6 +193,11 @@ def _leaves(
     names: PvNames, path: tuple[Node, ...], leaves: list[str]
 ) -> dict[str, str]:
     return {leaf: names.leaves[PvRequest(path, leaf)] for leaf in leaves}
+
+
+def pv_entries(root: BaseController) -> list[PvEntry]:
+    """Every PV the tree serves (CA names), sorted by name."""
+    return sorted(_walk(root), key=lambda entry: entry.name)
 
 
 def _walk(controller: BaseController) -> Iterator[PvEntry]:

@@ -1,0 +1,56 @@
+"""The IOC's ADS connections to one target, and whether the target answers now.
+
+One `Connection` is shared down the controller tree: the root's plan source
+creates it, its `Reconnection` component ties its state to the supervisor's
+(and reopens the pool), and every
+master and terminal asks it for clients and whether a request may go out.
+Nothing below the root ever calls back up; a master that sees a whole poll
+cycle fail `wake`s the supervisor through it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+from fastcs_ethercat.ads.client import AdsClient
+from fastcs_ethercat.ioc.clients import ClientPool
+from fastcs_ethercat.ioc.supervisor import LinkState
+
+
+@dataclass
+class Connection:
+    """Shared ADS clients to one target, the link state, the read-only rule."""
+
+    pool: ClientPool
+    net_id: str
+    """The target's (system) AMS NetId."""
+    read_only: bool = False
+    state_of: Callable[[], LinkState] = field(default=lambda: LinkState.CONNECTED)
+    """The supervisor's view of the link (set by the root's reconnection)."""
+    wake: Callable[[], None] = field(default=lambda: None)
+    """Ask the supervisor to probe now (set by the root's reconnection)."""
+
+    @property
+    def state(self) -> LinkState:
+        return self.state_of()
+
+    @property
+    def connected(self) -> bool:
+        return self.state_of() is LinkState.CONNECTED
+
+    async def client(self, net_id: str, ams_port: int) -> AdsClient:
+        """The pool's open client to `net_id:ams_port` (of the moment)."""
+        return await self.pool.get(net_id, ams_port)
+
+    def check_readable(self) -> None:
+        """Refuse (ConnectionError) while the target is away."""
+        if not self.connected:
+            raise ConnectionError("target not connected")
+
+    def check_writable(self, what: str) -> None:
+        """Refuse a write while read-only (PermissionError) or away."""
+        if self.read_only:
+            raise PermissionError("read-only IOC: no ADS writes")
+        if not self.connected:
+            raise ConnectionError(f"target not connected: {what} refused")

@@ -1,0 +1,696 @@
+"""What FastCS 0.14.4, softioc 4.7 and epicsdbbuilder 1.5 do not offer yet.
+
+The only module of the project that touches their internals. Delete it piece
+by piece as releases catch up; the IOC calls nothing of theirs private
+anywhere else.
+
+- **Updates with a timestamp and an alarm.** `AttrR.update(value)` lets each
+  transport stamp the value with the time its callback runs, has no alarm,
+  and costs ~120 µs (two tasks, reprs for its tracer). A poll cycle's values
+  were all read by one ADS request and must carry that request's time, and a
+  cycle of thousands of changes must not cost a core. `Endpoints.publish`
+  takes an `Update(value, timestamp, severity)` shaped like the one FastCS's
+  main branch has, sets what `update()` would set (`_value`, the
+  `_on_update_events`, an `AttrRW`'s first setpoint sync) and posts straight
+  to the CA in record and the PVA read PV; `Endpoints.publish_alarm` gives the
+  PVs an alarm with their value unchanged. When FastCS releases `Update`,
+  both become `attribute.update(Update(...))`.
+- **Where an attribute is served.** CA records are found by their PV names
+  with softioc's `LookupRecord` (public). The PVA SharedPVs are kept by
+  FastCS only in the closures of the callbacks its PVA transport registers on
+  the attribute (`make_shared_read_pv.<locals>.set_readback`, cell
+  `shared_pv`; `make_shared_write_pv.<locals>.set_setpoint`), so they are
+  read from there.
+- **CA out-record alarms.** softioc can stage an out record's alarm only for
+  its next processing, and processing an out record of FastCS writes to the
+  device: `_set_out_record_alarm` does what processing would through EPICS's
+  own database calls.
+- **A poll cycle's records in one turn.** softioc's `set()` queues an in
+  record's processing with `scanIoRequest` through ctypes, which releases the
+  GIL: the EPICS callback thread wakes, takes the GIL for softioc's Python
+  device support, and the caller waits for it back, for every record.
+  `_in_record_setter` stores the value as `set()` does and queues the same
+  request through a `PyDLL` binding that keeps the GIL (scanIoRequest only
+  appends to a queue), so a cycle costs a third of the CPU per value.
+- **Record field checks once per (field, value).** epicsdbbuilder checks every
+  field of every record (~0.3 ms a record, seconds for a rack);
+  `install_field_memo` replaces `ValidateDbField.ValidFieldValue` with one
+  that remembers what passed per record type and falls back to the library's
+  own check, so its error is the library's.
+- **Lean imports.** `fastcs.transports` imports every transport installed
+  (REST, GraphQL, Tango too), and setuptools_dso learns its caller with
+  `inspect.stack()`; `import_ioc_modules` leaves the unused transports out and
+  swaps setuptools_dso's `_auto_pkg` for a frame lookup, only while importing.
+
+`check_installed()` runs at every IOC start: each package's version must be
+one this was tested with and every internal used here must exist, else the
+IOC stops with one line naming the package and version.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import functools
+import importlib
+import importlib.abc
+import importlib.metadata
+import sys
+import time
+import types
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass
+from importlib.machinery import ModuleSpec
+from typing import TYPE_CHECKING, Any, Final, NamedTuple
+
+import numpy as np
+
+from fastcs_ethercat.errors import UserError
+
+if TYPE_CHECKING:  # FastCS is imported the lean way (`import_ioc_modules`)
+    from fastcs.attributes import Attribute, AttrR
+
+TESTED: Final = {
+    "fastcs": ((0, 14, 4), (0, 15)),
+    "softioc": ((4, 7), (4, 8)),
+    "epicsdbbuilder": ((1, 5), (1, 6)),
+}
+"""Package -> (lowest tested version, first version not tested), as in
+pyproject.toml."""
+
+
+# -- the update FastCS's main branch has -------------------------------------
+
+
+class Update(NamedTuple):
+    """A value with the time it was read and its alarm (EPICS numbers).
+
+    A tuple: one is made for every published value, so it must be cheap.
+    """
+
+    value: Any
+    timestamp: float
+    severity: int = 0
+    status: int = 0
+    message: str = ""
+
+
+def pva_time(stamp: float) -> dict[str, int]:
+    """The PVA timeStamp fields of a time.time() value."""
+    seconds = int(stamp)
+    return {"secondsPastEpoch": seconds, "nanoseconds": int((stamp - seconds) * 1e9)}
+
+
+# -- where an attribute is served --------------------------------------------
+
+
+@dataclass(frozen=True)
+class _Closure:
+    """One FastCS callback whose closure holds a PVA SharedPV."""
+
+    module: str
+    outer: str
+    inner: str
+    cell: str
+
+    @property
+    def qualname(self) -> str:
+        return f"{self.outer}.<locals>.{self.inner}"
+
+
+_CA_MODULE: Final = "fastcs.transports.epics.ca.ioc"
+_PVA_MODULE: Final = "fastcs.transports.epics.pva._pv_handlers"
+CA_READ: Final = _Closure(
+    _CA_MODULE, "_create_and_link_read_pv", "async_record_set", "record"
+)
+"""The CA transport's on-update callback (recognised, its record found by name)."""
+PVA_READ: Final = _Closure(
+    _PVA_MODULE, "make_shared_read_pv", "set_readback", "shared_pv"
+)
+PVA_WRITE: Final = _Closure(
+    _PVA_MODULE, "make_shared_write_pv", "set_setpoint", "shared_pv"
+)
+RBV_SUFFIX: Final = "_RBV"
+_NO_ALARM: Final = {"severity": 0, "status": 0, "message": ""}
+
+
+def ca_name(attribute: Attribute[Any, Any]) -> str:
+    """The CA PV FastCS makes for `attribute` (an `AttrRW`'s setpoint)."""
+    from fastcs.transports.epics.util import pv_prefix_from_path
+    from fastcs.util import snake_to_pascal
+
+    return f"{pv_prefix_from_path(attribute.path)}:{snake_to_pascal(attribute.name)}"
+
+
+def _ca_names(attribute: Attribute[Any, Any], *, reads: bool) -> list[str]:
+    """CA records of `attribute`: the out record, and the in record if `reads`."""
+    from fastcs.attributes import AttrR, AttrW
+
+    name = ca_name(attribute) if attribute.path else ""
+    if not name:
+        return []
+    found = [name] if isinstance(attribute, AttrW) else []
+    if reads and isinstance(attribute, AttrR):
+        found.append(name + RBV_SUFFIX if isinstance(attribute, AttrW) else name)
+    return found
+
+
+def database_records(attribute: Attribute[Any, Any], *, reads: bool) -> list[Any]:
+    """The CA database records (epicsdbbuilder) of `attribute`'s out record,
+    and in record if `reads`, to set fields on between the CA transport's
+    connect and iocInit."""
+    from epicsdbbuilder import LookupRecord
+
+    found = []
+    for name in _ca_names(attribute, reads=reads):
+        try:
+            found.append(LookupRecord(name))
+        except KeyError:
+            continue
+    return found
+
+
+def _ca_record(name: str) -> Any:
+    """softioc's record `name` (its device support), None without one."""
+    if "softioc.device_core" not in sys.modules:  # CA not served
+        return None
+    from softioc.device_core import LookupRecord
+
+    try:
+        return LookupRecord(name)
+    except KeyError:
+        return None
+
+
+@dataclass(frozen=True)
+class Endpoints:
+    """The CA records and PVA PVs serving one attribute (None: not made).
+
+    `ca_in`/`ca_out` are softioc device supports, `pva_read`/`pva_write`
+    p4p SharedPVs; `others` every other on-update callback (anyone's), which
+    gets each value as from `update()`.
+    """
+
+    attribute: Attribute[Any, Any]
+    ca_in: Any = None
+    ca_out: Any = None
+    pva_read: Any = None
+    pva_write: Any = None
+    others: tuple[Callable[[Any], Any], ...] = ()
+
+    def __bool__(self) -> bool:
+        return any(
+            x is not None
+            for x in (self.ca_in, self.ca_out, self.pva_read, self.pva_write)
+        )
+
+    def publish_alarm(self, severity: int, status: int, message: str) -> int:
+        """Give every PV this alarm, value unchanged; how many were reached."""
+        reached = 0
+        if self.ca_in is not None:  # the time too: the record is on device time
+            self.ca_in.set_alarm(severity, status, timestamp=time.time())
+            reached += 1
+        if self.ca_out is not None:
+            _set_out_record_alarm(self.ca_out, severity, status)
+            reached += 1
+        for pv in (self.pva_read, self.pva_write):
+            if pv is not None:
+                _post_pva_alarm(pv, severity, pva_status(status), message)
+                reached += 1
+        return reached
+
+
+def endpoints_of(attribute: Attribute[Any, Any]) -> Endpoints:
+    """Where FastCS serves `attribute` so far (transports connected/serving)."""
+    from fastcs.attributes import AttrR, AttrW
+
+    read_callbacks: list[Callable[..., Any]] = []
+    write_callbacks: Iterable[Callable[..., Any]] = ()
+    if isinstance(attribute, AttrR):
+        read_callbacks = [cb for cb, _ in attribute._on_update_callbacks or ()]  # pyright: ignore[reportPrivateUsage]
+    if isinstance(attribute, AttrW):
+        write_callbacks = attribute._sync_setpoint_callbacks  # pyright: ignore[reportPrivateUsage]
+    names = _ca_names(attribute, reads=True)
+    ca_out = _ca_record(names[0]) if names and isinstance(attribute, AttrW) else None
+    ca_in = _ca_record(names[-1]) if names and isinstance(attribute, AttrR) else None
+    others = tuple(
+        cb for cb in read_callbacks if not (_is(cb, CA_READ) or _is(cb, PVA_READ))
+    )
+    return Endpoints(
+        attribute,
+        ca_in=ca_in,
+        ca_out=ca_out,
+        pva_read=_find(read_callbacks, PVA_READ),
+        pva_write=_find(write_callbacks, PVA_WRITE),
+        others=others,
+    )
+
+
+def _find(callbacks: Iterable[Callable[..., Any]], closure: _Closure) -> Any:
+    for callback in callbacks:
+        if _is(callback, closure):
+            code: types.CodeType = callback.__code__  # type: ignore[attr-defined]
+            cells = callback.__closure__ or ()  # type: ignore[attr-defined]
+            return cells[code.co_freevars.index(closure.cell)].cell_contents
+    return None
+
+
+def _is(callback: Callable[..., Any], closure: _Closure) -> bool:
+    return (
+        getattr(callback, "__module__", None) == closure.module
+        and getattr(callback, "__qualname__", None) == closure.qualname
+    )
+
+
+# -- publishing values ---------------------------------------------------------
+
+
+class ValueRoute:
+    """Publishes `Update`s of one attribute, once the transports serve."""
+
+    def __init__(self, attribute: AttrR[Any, Any]) -> None:
+        from fastcs.attributes import AttrRW
+        from fastcs.transports.epics.ca.util import cast_to_epics_type
+
+        self.attribute = attribute
+        self.endpoints = endpoints_of(attribute)
+        self._writable = isinstance(attribute, AttrRW)
+        self._to_epics = cast_to_epics_type
+        self._set_ca: Callable[[Any, Update], None] | None = None
+        self._post_pva: Callable[[Update], None] | None = None
+        if self.endpoints.pva_read is not None:
+            self._post_pva = _pva_poster(self.endpoints.pva_read, attribute)
+        if self.endpoints.ca_in is not None:
+            _use_device_time(self.endpoints.ca_in)
+            self._set_ca = _in_record_setter(self.endpoints.ca_in)
+
+    async def publish(self, update: Update) -> None:
+        """What `attribute.update(update)` will do: value, setpoint, posts."""
+        attribute, value = self.attribute, update.value
+        attribute._value = value  # pyright: ignore[reportPrivateUsage]
+        events = attribute._on_update_events  # pyright: ignore[reportPrivateUsage]
+        if events:
+            attribute._on_update_events = {e for e in events if not e.set(value)}  # pyright: ignore[reportPrivateUsage]
+        if self._writable and not attribute._setpoint_initialised:  # pyright: ignore[reportAttributeAccessIssue]
+            await attribute._call_sync_setpoint_callbacks(value)  # pyright: ignore[reportAttributeAccessIssue]
+            attribute._setpoint_initialised = True  # pyright: ignore[reportAttributeAccessIssue]
+        if self._set_ca is not None:
+            self._set_ca(self._to_epics(attribute.datatype, value), update)
+        if self._post_pva is not None:
+            self._post_pva(update)
+        for callback in self.endpoints.others:
+            await callback(value)
+
+
+def _pva_poster(pv: Any, attribute: AttrR[Any, Any]) -> Callable[[Update], None]:
+    """Posts an update's value, alarm and time in the form FastCS's PV takes."""
+    from fastcs.datatypes import Bool, Enum, Float, Int, String, Waveform
+    from fastcs.transports.epics.pva.types import cast_to_p4p_value
+
+    def alarm_of(update: Update) -> dict[str, Any]:
+        status = pva_status(update.status)
+        return {
+            "severity": update.severity,
+            "status": status,
+            "message": update.message,
+        }
+
+    def scalar(update: Update) -> None:
+        alarm = alarm_of(update) if update.severity else _NO_ALARM
+        pv.post(
+            {
+                "value": update.value,
+                "alarm": alarm,
+                "timeStamp": pva_time(update.timestamp),
+            }
+        )
+
+    def wrapped(update: Update) -> None:  # NTEnum, NTNDArray: p4p wraps them
+        pv.post(
+            cast_to_p4p_value(attribute, update.value),
+            timestamp=update.timestamp,
+            severity=update.severity,
+            message=update.message,
+        )
+
+    def plain(update: Update) -> None:
+        pv.post(cast_to_p4p_value(attribute, update.value))
+
+    datatype = attribute.datatype
+    if isinstance(datatype, Int | Float | Bool | String):
+        return scalar
+    return wrapped if isinstance(datatype, Enum | Waveform) else plain
+
+
+def _post_pva_alarm(pv: Any, severity: int, status: int, message: str) -> None:
+    """Post only alarm and time, so the value stays as last posted."""
+    now = time.time()
+    if isinstance(pv.current(), np.ndarray):
+        # NTNDArray (a FastCS Waveform) wraps only arrays; its alarm has no status.
+        pv.post(pv.current(), severity=severity, message=message, timestamp=now)
+        return
+    pv.post(
+        {
+            "alarm": {"severity": severity, "status": status, "message": message},
+            "timeStamp": pva_time(now),
+        }
+    )
+
+
+_PVA_STATUS_OF: Final = {
+    **dict.fromkeys((1, 2, 3, 4, 5, 6, 7, 8, 11), 1),  # READ..COS, HWLIMIT: DEVICE
+    **dict.fromkeys((9, 10, 17), 2),  # COMM, TIMEOUT, UDF: DRIVER
+    **dict.fromkeys((12, 13, 14, 15, 16), 3),  # CALC..BAD_SUB: RECORD
+    **dict.fromkeys((18, 19, 20, 21), 4),  # DISABLE..WRITE_ACCESS: DB
+}
+"""CA alarm status (menuAlarmStat) -> the PVA alarm_t status, as QSRV groups
+them; 6 (UNDEFINED) for anything else but NO_ALARM."""
+
+
+def pva_status(status: int) -> int:
+    return 0 if status == 0 else _PVA_STATUS_OF.get(status, 6)
+
+
+# -- softioc -------------------------------------------------------------------
+
+
+def _use_device_time(record: Any) -> None:
+    """Let `record` keep the TIME its device support sets (TSE=-2)."""
+    fields = getattr(record, "_record", None)  # softioc's view of its fields
+    if fields is not None:
+        fields.TSE = -2
+
+
+def _in_record_setter(device: Any) -> Callable[[Any, Update], None]:
+    """`set(value, severity, alarm, timestamp)` of a softioc in record that
+    queues its processing without releasing the GIL (see the top)."""
+    to_epics = device._value_to_epics
+    request = _scan_io_request_keeping_gil()
+
+    def set_value(value: Any, update: Update) -> None:
+        device._value = (
+            to_epics(value),
+            update.severity,
+            update.status,
+            update.timestamp,
+        )
+        ioscan = device._DeviceSupportCore__ioscanpvt
+        if ioscan:
+            request(ioscan)
+
+    return set_value
+
+
+@functools.cache
+def _scan_io_request_keeping_gil() -> Any:
+    from epicscorelibs.ioc import dbCore
+
+    function = ctypes.PyDLL(dbCore._name).scanIoRequest
+    function.argtypes = (ctypes.c_void_p,)
+    function.restype = None
+    return function
+
+
+def _set_out_record_alarm(record: Any, severity: int, status: int) -> None:
+    """Give a softioc out record this alarm now, value and device untouched.
+
+    Stage the alarm as softioc does (kept for the record's next processing),
+    then, under the record's lock, do what processing would: stage it in
+    NSEV/NSTA, let EPICS move it to SEVR/STAT (recGblResetAlarms, which posts
+    those fields) and post VAL with DBE_ALARM, so monitors see it.
+    """
+    record.set(record.get(), process=False, severity=severity, alarm=status)
+    fields = getattr(record, "_record", None)
+    if fields is None:  # before iocInit: softioc applies the staged alarm
+        return
+    functions = _database_functions()
+    base: int = fields.record.value
+    value_address = ctypes.c_void_p(base + fields.fields["VAL"][0])
+    functions.lock(fields)
+    try:
+        fields.NSEV = severity
+        fields.NSTA = status
+        fields.TIME = time.time()
+        changed = functions.reset_alarms(fields)
+        if changed:
+            functions.post_events(ctypes.c_void_p(base), value_address, changed)
+    finally:
+        functions.unlock(fields)
+
+
+@dataclass(frozen=True)
+class _DatabaseFunctions:
+    lock: Any
+    unlock: Any
+    reset_alarms: Any
+    post_events: Any
+
+
+@functools.cache
+def _database_functions() -> _DatabaseFunctions:
+    """EPICS database calls, loaded only once a CA IOC (softioc) runs."""
+    from epicscorelibs.ioc import dbCore
+    from softioc.imports import recGblResetAlarms
+
+    for name in ("dbScanLock", "dbScanUnlock"):
+        getattr(dbCore, name).argtypes = (ctypes.c_void_p,)
+        getattr(dbCore, name).restype = None
+    post_events = dbCore.db_post_events
+    post_events.argtypes = (ctypes.c_void_p, ctypes.c_void_p, ctypes.c_uint)
+    post_events.restype = ctypes.c_int
+    return _DatabaseFunctions(
+        dbCore.dbScanLock, dbCore.dbScanUnlock, recGblResetAlarms, post_events
+    )
+
+
+def set_callback_queue_size(entries: int) -> None:
+    """EPICS callback queue entries (before iocInit): every changed record
+    queues one, and the default 2000 overflows on a large rack."""
+    from softioc.imports import callbackSetQueueSize
+
+    callbackSetQueueSize(entries)
+
+
+# -- epicsdbbuilder ------------------------------------------------------------
+
+_PASSED: Final = "_fastcs_ethercat_passed"
+"""Attribute of a record type's validator: the (field, value)s that passed."""
+_POSITIONS: Final = "_fastcs_ethercat_positions"
+"""Attribute of a record type's validator: field name -> position in the walk."""
+
+
+@functools.cache
+def install_field_memo() -> None:
+    """Check each (field, value) of a record type once (idempotent).
+
+    `dbVerify`'s verdict depends only on the field's definition and the
+    value's text; a new value is verified with the cursor put on its field by
+    position, learnt once per record type; a value that fails is checked
+    again the library's way, so the error raised is the library's own.
+    """
+    from epicsdbbuilder import mydbstatic
+    from epicsdbbuilder.dbd import ValidateDbField
+
+    db: Any = mydbstatic  # its functions are bound at run time (ctypes)
+    walk: Callable[[Any, str, Any], None] = ValidateDbField.ValidFieldValue
+
+    def on_field(self: Any, name: str) -> bool:
+        """Put the validator's cursor on field `name` by its position."""
+        positions: dict[str, int] | None = self.__dict__.get(_POSITIONS)
+        if positions is None:
+            fields = self.dbEntry.iterate_fields()
+            positions = {field: index for index, field in enumerate(fields)}
+            self.__dict__[_POSITIONS] = positions
+        position = positions.get(name)
+        if position is None:
+            return False
+        status = db.dbFirstField(self.dbEntry, 0)
+        for _ in range(position):
+            status = db.dbNextField(self.dbEntry, 0)
+        return status == 0
+
+    def valid_field_value(self: Any, name: str, value: Any) -> None:
+        key = (name, str(value))
+        known: set[tuple[str, str]] = self.__dict__.setdefault(_PASSED, set())
+        if key in known:
+            return
+        self.ValidFieldName(name)
+        if not on_field(self, name) or db.dbVerify(self.dbEntry, key[1]):
+            walk(self, name, value)  # the library's own check raises its error
+        known.add(key)
+
+    ValidateDbField.ValidFieldValue = valid_field_value
+
+
+# -- imports -------------------------------------------------------------------
+
+UNUSED_TRANSPORTS: Final = frozenset(
+    {"fastcs.transports.rest", "fastcs.transports.graphql", "fastcs.transports.tango"}
+)
+IOC_MODULES: Final = (
+    "fastcs",
+    "fastcs.transports.epics.ca.transport",
+    "fastcs.transports.epics.pva.transport",
+)
+"""What an IOC imports anyway: FastCS, softioc (CA) and p4p (PVA)."""
+
+
+class _RefuseUnused(importlib.abc.MetaPathFinder):
+    """Makes the unused transports look not installed (FastCS skips them)."""
+
+    def find_spec(
+        self,
+        fullname: str,
+        path: Sequence[str] | None,
+        target: types.ModuleType | None = None,
+    ) -> ModuleSpec | None:
+        if fullname in UNUSED_TRANSPORTS:
+            raise ModuleNotFoundError(f"{fullname} left out", name=fullname)
+        return None
+
+
+def _caller_package() -> str:
+    """What setuptools_dso's `_auto_pkg` returns: the module name of the frame
+    that called `find_dso`/`dylink_prepare_dso` (two frames up)."""
+    return sys._getframe(2).f_globals["__name__"]  # pyright: ignore[reportPrivateUsage]
+
+
+@contextmanager
+def lean_imports() -> Iterator[None]:
+    """Within: unused FastCS transports are not imported, DSOs found quickly."""
+    finder = _RefuseUnused()
+    sys.meta_path.insert(0, finder)
+    try:
+        runtime: Any = importlib.import_module("setuptools_dso.runtime")
+    except ImportError:
+        runtime = None
+    auto_pkg = getattr(runtime, "_auto_pkg", None)
+    if auto_pkg is not None:
+        runtime._auto_pkg = _caller_package
+    try:
+        yield
+    finally:
+        sys.meta_path.remove(finder)
+        if auto_pkg is not None:
+            runtime._auto_pkg = auto_pkg
+
+
+def import_ioc_modules() -> None:
+    """Import FastCS with its CA and PVA transports the quick way (once)."""
+    if all(name in sys.modules for name in IOC_MODULES):
+        return
+    with lean_imports():
+        for name in IOC_MODULES:
+            importlib.import_module(name)
+
+
+# -- the check at start --------------------------------------------------------
+
+
+def _version(text: str) -> tuple[int, ...]:
+    numbers: list[int] = []
+    for part in text.split("."):
+        digits = "".join(c for c in part if c.isdigit()) if part[:1].isdigit() else ""
+        if not digits:
+            break
+        numbers.append(int(digits))
+    return tuple(numbers)
+
+
+def _range(package: str) -> str:
+    low, high = TESTED[package]
+    return f">={'.'.join(map(str, low))},<{'.'.join(map(str, high))}"
+
+
+def version_problems() -> list[str]:
+    """Installed versions outside the tested ranges, one text each."""
+    problems: list[str] = []
+    for package, (low, high) in TESTED.items():
+        try:
+            installed = importlib.metadata.version(package)
+        except importlib.metadata.PackageNotFoundError:
+            problems.append(f"{package} is not installed (tested {_range(package)})")
+            continue
+        if not low <= _version(installed) < high:
+            problems.append(
+                f"{package} {installed} is installed, fastcs-ethercat is tested "
+                f"with {package}{_range(package)}"
+            )
+    return problems
+
+
+def shape_problems() -> list[str]:
+    """Internals used above that the installed packages no longer have."""
+    problems: list[str] = []
+    for closure in (CA_READ, PVA_READ, PVA_WRITE):
+        outer = getattr(importlib.import_module(closure.module), closure.outer, None)
+        if not isinstance(outer, types.FunctionType):
+            problems.append(f"fastcs: {closure.module}.{closure.outer} is gone")
+            continue
+        inner = [
+            const
+            for const in outer.__code__.co_consts
+            if isinstance(const, types.CodeType) and const.co_name == closure.inner
+        ]
+        if not inner:
+            problems.append(f"fastcs: {closure.qualname} is gone")
+        elif closure.cell not in inner[0].co_freevars:
+            problems.append(f"fastcs: {closure.qualname} has no {closure.cell}")
+    from fastcs.attributes import AttrR, AttrRW, AttrW
+    from fastcs.datatypes import Int
+
+    fields: dict[type[Any], tuple[str, ...]] = {
+        AttrR: ("_on_update_callbacks", "_on_update_events", "_value"),
+        AttrW: ("_sync_setpoint_callbacks", "_call_sync_setpoint_callbacks"),
+        AttrRW: ("_setpoint_initialised",),
+    }
+    for kind, names in fields.items():
+        sample = kind(Int())
+        problems += [
+            f"fastcs: {kind.__name__}.{name} is gone"
+            for name in names
+            if not hasattr(sample, name)
+        ]
+    return problems + _softioc_problems() + _epicsdbbuilder_problems()
+
+
+def _softioc_problems() -> list[str]:
+    from softioc import device_core, imports
+    from softioc.device import ProcessDeviceSupportIn
+
+    problems: list[str] = []
+    if not callable(getattr(device_core, "LookupRecord", None)):
+        problems.append("softioc: device_core.LookupRecord is gone")
+    core = device_core.DeviceSupportCore
+    if "_DeviceSupportCore__ioscanpvt" not in core.trigger.__code__.co_names:
+        problems.append("softioc: trigger() no longer uses __ioscanpvt")
+    if "_value" not in ProcessDeviceSupportIn._process.__code__.co_names:
+        problems.append("softioc: in records no longer process _value")
+    if not hasattr(ProcessDeviceSupportIn, "_value_to_epics"):
+        problems.append("softioc: in records have no _value_to_epics")
+    for name in ("recGblResetAlarms", "callbackSetQueueSize"):
+        if not hasattr(imports, name):
+            problems.append(f"softioc: imports.{name} is gone")
+    return problems
+
+
+def _epicsdbbuilder_problems() -> list[str]:
+    from epicsdbbuilder.dbd import ValidateDbField
+
+    if not callable(getattr(ValidateDbField, "ValidFieldValue", None)):
+        return ["epicsdbbuilder: ValidateDbField.ValidFieldValue is gone"]
+    return []
+
+
+def check_installed() -> None:
+    """Stop (`UserError`, one line) unless FastCS, softioc and epicsdbbuilder
+    are versions this was tested with and have the internals it uses."""
+    problems = version_problems()
+    if not problems:
+        import_ioc_modules()
+        problems = shape_problems()
+    if problems:
+        raise UserError(
+            "; ".join(problems) + ": install the versions pyproject.toml names",
+            where="packages",
+        )
