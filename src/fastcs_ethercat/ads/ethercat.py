@@ -7,7 +7,8 @@ offset 5 the device's NetId, offset 7 device type u16.
 EtherCAT master (device NetId, port 0xFFFF): 0x03/0x100 master state u16,
 0x06 slave count u16, 0x07 slave addresses u16 x n, 0x09 (AL state u8, link
 state u8) per slave, 0x0C frame counters 5 x u32, 0x11 identity 4 x u32,
-0x12 CRC counters (4 x u32, one per port, offset = slave address).
+0x12 CRC counters (offset = slave address: 4 x u32, one per port; offset 0:
+one u32 per slave, its ports added).
 """
 
 from __future__ import annotations
@@ -280,7 +281,7 @@ class FrameCounters:
 
 @dataclass(frozen=True, slots=True)
 class CrcCounters:
-    """Group 0x12 (offset = slave address): CRC error counters per port."""
+    """Group 0x12, offset = slave address: CRC error counters per port."""
 
     port_a: int = 0
     port_b: int = 0
@@ -294,3 +295,24 @@ class CrcCounters:
     def decode(cls, raw: bytes | bytearray | memoryview) -> Self:
         reader = _exact(raw, 16, "CRC counters")
         return cls(*(reader.u32() for _ in range(4)))
+
+    @property
+    def total(self) -> int:
+        """The four ports added, as group 0x12 offset 0 reports each slave."""
+        return (self.port_a + self.port_b + self.port_c + self.port_d) & 0xFFFF_FFFF
+
+
+def encode_crc_totals(totals: Sequence[int]) -> bytes:
+    """Group 0x12 offset 0: per slave in bus order, its ports' CRC error
+    counters added, u32 each (Beckhoff FB_EcGetAllSlaveCrcErrors)."""
+    return _pack(f"<{len(totals)}I", *totals)
+
+
+def decode_crc_totals(raw: bytes | bytearray | memoryview) -> tuple[int, ...]:
+    if len(raw) % 4:
+        raise AdsCodecError(
+            f"CRC totals: length {len(raw)} is not a multiple of 4",
+            AdsReturnCode.DEVICE_INVALID_SIZE,
+        )
+    reader = ByteReader(raw, "CRC totals")
+    return tuple(reader.u32() for _ in range(len(raw) // 4))

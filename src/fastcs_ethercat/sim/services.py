@@ -41,6 +41,7 @@ from fastcs_ethercat.ads.ethercat import (
 )
 from fastcs_ethercat.ads.sums import (
     SumReadItem,
+    SumReadLayout,
     SumReadRequest,
     SumReadResponse,
     SumReadWriteRequest,
@@ -205,12 +206,16 @@ class DevicePort(Port):
             case IndexGroup.SYM_UPLOAD_INFO:
                 return fit(table.upload_info, length)
             case IndexGroup.SYM_UPLOAD_INFO_2:
+                if not dev.system.upload_info_2:  # older TwinCAT
+                    return AdsReturnCode.DEVICE_SERVICE_NOT_SUPPORTED, b""
                 return fit(table.upload_info2, length)
             case IndexGroup.SYM_UPLOAD:
                 return fit(table.upload, length)
             case IndexGroup.SYM_DT_UPLOAD:
                 return fit(table.data_types, length)
             case IndexGroup.SYM_VERSION:
+                if not dev.system.symbol_version_on_device_port:
+                    return AdsReturnCode.DEVICE_SERVICE_NOT_SUPPORTED, b""
                 return fit(bytes([dev.version]), length)
             case IndexGroup.SYM_VALUE_BY_HANDLE:
                 result, found = dev.handle(offset)
@@ -294,7 +299,7 @@ class DevicePort(Port):
             case IndexGroup.SUMUP_READ:
                 return self._sum_read(offset, length, data)
             case IndexGroup.SUMUP_WRITE:
-                if not dev.sum_write:
+                if not dev.system.sum_write_on_device_port:
                     return AdsReturnCode.DEVICE_SERVICE_NOT_SUPPORTED, b""
                 return self._sum_write(offset, length, data)
             case IndexGroup.SUMUP_READ_WRITE:
@@ -309,7 +314,7 @@ class DevicePort(Port):
 
     def _too_many(self, count: int) -> bool:
         """More sub-commands than the limit (500): the whole request is refused."""
-        return count > self.dev.max_sum_items or count == 0
+        return count > self.dev.system.max_sum_items or count == 0
 
     def _sum_read(self, count: int, length: int, data: bytes) -> Outcome:
         if self._too_many(count):
@@ -483,20 +488,19 @@ class _Gather:
 @dataclass(frozen=True, slots=True)
 class SumReadPlan:
     """A sum read whose every item is a valid image slice or single bit,
-    precompiled into index arrays: answered with two numpy gathers."""
+    precompiled into index arrays: answered with two numpy gathers into a
+    zeroed answer (all results 0, `SumReadLayout`)."""
 
     count: int
     read_length: int
-    header: bytes
-    data_size: int
     inputs: _Gather
     outputs: _Gather
 
     def answer(self, inputs: bytearray, outputs: bytearray) -> bytes:
-        data = np.zeros(self.data_size, dtype=np.uint8)
-        self.inputs.apply(data, inputs)
-        self.outputs.apply(data, outputs)
-        return self.header + data.tobytes()
+        answer = np.zeros(self.read_length, dtype=np.uint8)
+        self.inputs.apply(answer, inputs)
+        self.outputs.apply(answer, outputs)
+        return answer.tobytes()
 
 
 def compile_sum_read(
@@ -504,14 +508,14 @@ def compile_sum_read(
 ) -> SumReadPlan | None:
     """The plan for `items`, or None when any item needs the general path
     (another group, out of range, a multi-bit read)."""
+    layout = SumReadLayout.of(items)
     gathers: dict[int, tuple[bytearray, list[list[int]]]] = {}
     for area, buffer in ((INPUTS, inputs), (OUTPUTS, outputs)):
         lists: list[list[int]] = [[], [], [], [], []]
         gathers[area.byte_group] = (buffer, lists)
         gathers[area.bit_group] = (buffer, lists)
     byte_groups = {INPUTS.byte_group, OUTPUTS.byte_group}
-    position = 0
-    for item in items:
+    for item, position in zip(items, layout.data_offsets.tolist(), strict=True):
         found = gathers.get(item.index_group)
         if found is None:
             return None
@@ -528,7 +532,6 @@ def compile_sum_read(
             bit_to.append(position)
             bit_from.append(offset >> 3)
             bit_shift.append(offset & 7)
-        position += length
 
     def gather(group: int) -> _Gather:
         byte_to, byte_from, bit_to, bit_from, bit_shift = gathers[group][1]
@@ -542,9 +545,7 @@ def compile_sum_read(
 
     return SumReadPlan(
         count=len(items),
-        read_length=4 * len(items) + position,
-        header=bytes(4 * len(items)),
-        data_size=position,
+        read_length=layout.size,
         inputs=gather(INPUTS.byte_group),
         outputs=gather(OUTPUTS.byte_group),
     )

@@ -80,8 +80,7 @@ class SimTarget:
                 master,
                 seed=seed,
                 cycle_s=self.cycle_s,
-                max_sum_items=system.max_sum_items,
-                sum_write=system.sum_write_on_device_port,
+                system=system,
             )
             for master in masters
         ]
