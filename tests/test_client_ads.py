@@ -34,6 +34,10 @@ from fastcs_ethercat.ads.client import (
     discover_net_id,
 )
 from fastcs_ethercat.ads.commands import (
+    AddDeviceNotificationResponse,
+    DeviceNotification,
+    NotificationSample,
+    NotificationStamp,
     ReadDeviceInfoResponse,
     ReadRequest,
     ReadResponse,
@@ -54,7 +58,7 @@ from fastcs_ethercat.ads.constants import (
     IndexGroup,
 )
 from fastcs_ethercat.ads.datatypes import AdsDataTypeEntry, encode_data_type_table
-from fastcs_ethercat.ads.frames import AmsPacket
+from fastcs_ethercat.ads.frames import AmsPacket, FrameReassembler, encode_packet
 from fastcs_ethercat.ads.netid import AmsAddress, AmsNetId
 from fastcs_ethercat.ads.sums import (
     SumReadItem,
@@ -617,3 +621,39 @@ async def test_route_password_from_env_reaches_the_target_and_no_log(
     output = capfd.readouterr()
     for text in (caplog.text, output.out, output.err, str(refused.value), repr(route)):
         assert ROUTE_PASSWORD not in text
+
+
+async def test_a_sample_in_the_same_write_as_its_handle_is_not_lost() -> None:
+    """The cause of the old race: the first sample may follow the answer to
+    AddDeviceNotification at once, in the same TCP segment; the handle is
+    registered the moment that answer is read, so the sample finds it."""
+    handle = 0x4242
+
+    async def serve(reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        reassembler = FrameReassembler()
+        while data := await reader.read(4096):
+            for request in reassembler.feed(data):
+                answer = request.response(
+                    AddDeviceNotificationResponse(0, handle).encode()
+                )
+                sample = AmsPacket(
+                    target=request.source,
+                    source=request.target,
+                    command=AmsCommand.DEVICE_NOTIFICATION,
+                    payload=DeviceNotification(
+                        (NotificationStamp(1, (NotificationSample(handle, b"\x07"),)),)
+                    ).encode(),
+                )
+                writer.write(encode_packet(answer) + encode_packet(sample))
+
+    server = await asyncio.start_server(serve, "127.0.0.1", 0)
+    port = server.sockets[0].getsockname()[1]
+    received: list[Notification] = []
+    try:
+        async with AdsClient("127.0.0.1", NET_ID, DEVICE_PORT, tcp_port=port) as ads:
+            added = await ads.add_notification(INPUTS, 0, 1, received.append)
+    finally:
+        server.close()
+
+    assert added.notification == handle
+    assert [(n.handle, n.data) for n in received] == [(handle, b"\x07")]
