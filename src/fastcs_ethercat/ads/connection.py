@@ -67,6 +67,19 @@ _UNREACHABLE_ERRNOS: Final = frozenset(
 )
 
 _default_local_net_id: AmsNetId | None = None
+_malformed_logs: dict[str, RateLimitedLog] = {}
+
+
+def _malformed_log(address: str) -> RateLimitedLog:
+    """One limiter per target address for the whole process: a client that
+    reconnects again and again to a hostile target still logs at most once
+    per interval."""
+    log = _malformed_logs.get(address)
+    if log is None:
+        log = _malformed_logs[address] = RateLimitedLog(
+            logger, MALFORMED_LOG_INTERVAL_S
+        )
+    return log
 
 
 def set_local_net_id(net_id: str | AmsNetId | None) -> None:
@@ -163,7 +176,7 @@ class AmsTcpConnection:
             else AmsNetId.parse(chosen)
         )
         self.stats = ConnectionStats()
-        self._log = RateLimitedLog(logger, MALFORMED_LOG_INTERVAL_S)
+        self._log = _malformed_log(self.address)
         self._session = ClientSession(max_frame_size)
         self._transport: asyncio.Transport | None = None
         self._protocol: _Protocol | None = None
