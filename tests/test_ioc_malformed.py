@@ -1,5 +1,6 @@
 """An IOC whose target turns hostile: it survives every malformed frame,
-keeps its log short, and serves again when the target is good again.
+keeps its log short, and serves again when the target is good again; and it
+never loads AdsLib's native code.
 
 The IOC (a subprocess) starts against the simulator through a proxy in this
 process; the proxy then answers every request with bursts of malformed
@@ -82,6 +83,7 @@ def test_the_ioc_survives_a_hostile_target(tmp_path: Path) -> None:
             ioc = start_ioc([*IOC_COMMAND, "--config", str(config)], prefix, env, token)
             try:
                 ioc.wait_for_line("ioc ready", START_TIMEOUT)
+                maps = Path(f"/proc/{ioc.process.pid}/maps").read_text()
                 assert wait_for(lambda: root(ioc, "Connected") == "True", 30)
                 assert sine_moves(ioc)
                 drain(ioc)
@@ -113,6 +115,7 @@ def test_the_ioc_survives_a_hostile_target(tmp_path: Path) -> None:
             finally:
                 ioc.stop()
 
+    assert "adslib" not in maps.lower(), "the IOC loaded AdsLib's native code"
     assert sent and proxy.malformed_sent >= MALFORMED_FRAMES, dict(proxy.sent)
     assert alive_while_bad and alive, "".join(ioc.output[-40:])
     assert lost

@@ -255,11 +255,16 @@ def encode_data_type_table(
 
 @dataclass(frozen=True, slots=True)
 class MemberLayout:
-    """A leaf member of a (nested) type, with its offset from the type start.
+    """A leaf of a (nested) type: where its bytes are from the type's start.
 
-    `path` is dotted from the top type ("Status.Underrange"); TwinCAT reaches
-    it as `<symbol>.<path>`. Members flagged BIT_VALUES count offset and size
-    in bits (`in_bits`); all others in bytes (unconfirmed for real TwinCAT).
+    `path` is dotted from the top type ("Status.Underrange"; "" for a type
+    without members); TwinCAT reaches it as `<symbol>.<path>`. A byte leaf
+    has `offset` and `size` in bytes. A bit field (flag BIT_VALUES) sits in
+    the structure that holds it: `offset` and `size` are that structure's
+    bytes, `bit_offset` and `bit_size` its bits from there. A leaf with
+    `dimensions` is an array of `type_name` elements (a named array type such
+    as `Ch1 Sample 0_TYPE_ARR`); an array member carries its own
+    `ARRAY [a..b] OF T` type name instead.
     """
 
     path: str
@@ -267,24 +272,31 @@ class MemberLayout:
     data_type: AdsDataType | int
     offset: int
     size: int
-    in_bits: bool = False
+    bit_offset: int = 0
+    bit_size: int = 0
+    dimensions: tuple[ArrayDimension, ...] = ()
 
 
-def flatten_members(
+MAX_MEMBER_DEPTH: Final = 8
+"""I/O types nest two or three deep; a type table that nests deeper (or
+refers to itself) is cut there instead of being followed forever."""
+
+
+def walk_members(
     entry: AdsDataTypeEntry,
     types: Mapping[str, AdsDataTypeEntry] | None = None,
 ) -> list[MemberLayout]:
-    """Every leaf member of `entry` with absolute offsets.
+    """Every leaf of `entry`, offsets from its start, in member order.
 
-    A member whose own sub-items are not inlined is resolved through `types`
+    A member whose own sub-items are not inlined is followed through `types`
     (the data-type table by name), as TwinCAT lists each type once.
     """
     found: list[MemberLayout] = []
-    _flatten(entry, types or {}, "", 0, found, 0)
+    _walk(entry, types or {}, "", 0, found, 0)
     return found
 
 
-def _flatten(
+def _walk(
     entry: AdsDataTypeEntry,
     types: Mapping[str, AdsDataTypeEntry],
     prefix: str,
@@ -292,24 +304,44 @@ def _flatten(
     found: list[MemberLayout],
     depth: int,
 ) -> None:
-    if depth > _MAX_DEPTH:
-        raise AdsCodecError(
-            f"type {entry.name!r} nests deeper than {_MAX_DEPTH} (recursive?)",
-            AdsReturnCode.DEVICE_INVALID_DATA,
+    if depth > MAX_MEMBER_DEPTH:
+        return
+    if not entry.sub_items:
+        found.append(
+            MemberLayout(
+                prefix.rstrip("."),
+                entry.type_name,
+                entry.data_type,
+                base,
+                entry.size,
+                dimensions=entry.array_dimensions,
+            )
         )
+        return
     for item in entry.sub_items:
         path = f"{prefix}{item.name}"
-        in_bits = bool(item.flags & DataTypeFlag.BIT_VALUES)
-        offset = base * (8 if in_bits else 1) + item.offset
-        nested = item if item.sub_items else types.get(item.type_name)
-        if nested is not None and nested.sub_items and not in_bits:
-            _flatten(nested, types, f"{path}.", offset, found, depth + 1)
-        else:
+        if item.flags & DataTypeFlag.BIT_VALUES:
             found.append(
                 MemberLayout(
-                    path, item.type_name, item.data_type, offset, item.size, in_bits
+                    path,
+                    item.type_name,
+                    item.data_type,
+                    base,
+                    max(entry.size, 1),
+                    bit_offset=item.offset,
+                    bit_size=item.size,
                 )
             )
+            continue
+        nested = item if item.sub_items else types.get(item.type_name)
+        if nested is not None and (nested.sub_items or nested.array_dimensions):
+            _walk(nested, types, f"{path}.", base + item.offset, found, depth + 1)
+            continue
+        found.append(
+            MemberLayout(
+                path, item.type_name, item.data_type, base + item.offset, item.size
+            )
+        )
 
 
 @dataclass(frozen=True, slots=True)
