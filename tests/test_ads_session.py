@@ -24,10 +24,9 @@ from fastcs_ethercat.ads.frames import AmsPacket, encode_packet
 from fastcs_ethercat.ads.netid import AmsAddress, AmsNetId
 from fastcs_ethercat.ads.session import (
     Answered,
+    BadFrame,
     Broken,
     ClientSession,
-    Dropped,
-    Failed,
     Late,
     Malformed,
     Notified,
@@ -88,7 +87,7 @@ def test_a_frame_longer_than_its_ams_header_says_fails_only_its_request() -> Non
 
     events = session.receive(frame + good)
 
-    assert isinstance(events[0], Failed)
+    assert isinstance(events[0], BadFrame)
     assert events[0].kind is Malformed.HEADER
     assert events[0].invoke_id == packet.invoke_id
     assert isinstance(events[1], Answered)
@@ -126,8 +125,9 @@ def test_unknown_and_late_invoke_ids() -> None:
     events = session.receive(late + bogus)
 
     assert isinstance(events[0], Late)
-    assert isinstance(events[1], Dropped)
-    assert events[1].kind is Malformed.INVOKE_ID
+    assert events[1] == BadFrame(
+        Malformed.INVOKE_ID, "response with invoke id 99999 to no request"
+    )
 
 
 def test_answers_that_do_not_fit_their_request_fail_it() -> None:
@@ -171,8 +171,8 @@ def test_answers_that_do_not_fit_their_request_fail_it() -> None:
 
     events = session.receive(b"".join(frames))
 
-    assert all(isinstance(e, Failed) for e in events)
-    assert [e.kind for e in events if isinstance(e, Failed)] == [
+    assert all(isinstance(e, BadFrame) and e.invoke_id for e in events)
+    assert [e.kind for e in events if isinstance(e, BadFrame)] == [
         Malformed.MISMATCH,
         Malformed.MISMATCH,
         Malformed.PAYLOAD,
@@ -223,10 +223,10 @@ def test_notifications_and_requests_from_the_peer() -> None:
     )
 
     assert events[0] == Notified(US.port, PLC, stamps)
-    assert isinstance(events[1], Dropped)
-    assert events[1].kind is Malformed.NOTIFICATION
-    assert isinstance(events[2], Dropped)
-    assert events[2].kind is Malformed.UNEXPECTED
+    assert isinstance(events[1], BadFrame)
+    assert (events[1].kind, events[1].invoke_id) == (Malformed.NOTIFICATION, None)
+    assert isinstance(events[2], BadFrame)
+    assert (events[2].kind, events[2].invoke_id) == (Malformed.UNEXPECTED, None)
 
 
 def test_answers_still_match_after_a_read_state() -> None:

@@ -92,7 +92,7 @@ from fastcs_ethercat.ads.symbols import (
 )
 from fastcs_ethercat.ads.udp_client import add_route, discover_net_id, local_ip_towards
 from fastcs_ethercat.ads.values import unpack_value
-from fastcs_ethercat.ads.wire import U32
+from fastcs_ethercat.ads.wire import U32, enum_or_int
 
 logger = logging.getLogger(__name__)
 
@@ -272,7 +272,9 @@ class AdsClient:
         response = await self._request(
             "read state", ReadStateRequest(), ReadStateResponse
         )
-        return AdsStatus(_ads_state(response.ads_state), response.device_state)
+        return AdsStatus(
+            enum_or_int(AdsState, response.ads_state), response.device_state
+        )
 
     async def read_device_info(self) -> DeviceInfo:
         response = await self._request(
@@ -465,13 +467,10 @@ class AdsClient:
         outcomes = await self.sum_read_items(
             [SumReadItem(IndexGroup.SYM_VALUE_BY_HANDLE, h, size) for h, size in reads]
         )
+        errors = self._handle_errors("read", [h for h, _ in reads], outcomes)
         return [
-            data
-            if result == AdsReturnCode.NO_ERROR
-            else ads_error(
-                result, f"read of handle 0x{h:X}", self.target, by_handle=True
-            )
-            for (h, _), (result, data) in zip(reads, outcomes, strict=True)
+            data if error is None else error
+            for (_, data), error in zip(outcomes, errors, strict=True)
         ]
 
     async def read_by_handle(self, handle: int, size: int) -> bytes:
@@ -505,14 +504,7 @@ class AdsClient:
         results = await self.sum_write(
             [SumWriteItem(IndexGroup.SYM_VALUE_BY_HANDLE, h, d) for h, d in writes]
         )
-        return [
-            None
-            if result == AdsReturnCode.NO_ERROR
-            else ads_error(
-                result, f"write of handle 0x{h:X}", self.target, by_handle=True
-            )
-            for (h, _), result in zip(writes, results, strict=True)
-        ]
+        return self._handle_errors("write", [h for h, _ in writes], results)
 
     async def release_handles(self, handles: Sequence[int]) -> list[AdsError | None]:
         """Release handles (0xF006 items of a 0xF081 sum, or single writes):
@@ -523,14 +515,29 @@ class AdsClient:
                 for h in handles
             ]
         )
-        return [
-            None
-            if result == AdsReturnCode.NO_ERROR
-            else ads_error(
-                result, f"release of handle 0x{h:X}", self.target, by_handle=True
+        return self._handle_errors("release", handles, results)
+
+    def _handle_errors(
+        self,
+        verb: str,
+        handles: Sequence[int],
+        outcomes: Sequence[int] | Sequence[tuple[int, bytes]],
+    ) -> list[AdsError | None]:
+        """Per item of a sum by handle: None, or its typed error."""
+        errors: list[AdsError | None] = []
+        for handle, outcome in zip(handles, outcomes, strict=True):
+            result = outcome if isinstance(outcome, int) else outcome[0]
+            errors.append(
+                None
+                if result == AdsReturnCode.NO_ERROR
+                else ads_error(
+                    result,
+                    f"{verb} of handle 0x{handle:X}",
+                    self.target,
+                    by_handle=True,
+                )
             )
-            for h, result in zip(handles, results, strict=True)
-        ]
+        return errors
 
     # -- symbols by name and the tables ----------------------------------------------
 
@@ -849,13 +856,6 @@ async def _all(awaitables: Any) -> list[Any]:
 def _entry(data: bytes) -> AdsSymbolEntry:
     entry, _ = AdsSymbolEntry.decode_at(data)
     return entry
-
-
-def _ads_state(value: int) -> AdsState | int:
-    try:
-        return AdsState(value)
-    except ValueError:
-        return value
 
 
 __all__ = [

@@ -11,9 +11,9 @@ unknown command).
 from __future__ import annotations
 
 import struct
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from datetime import UTC, datetime, timedelta
-from typing import ClassVar, Final, Self, TypeVar
+from typing import Any, ClassVar, Final, Self, TypeVar, cast
 
 from fastcs_ethercat.ads.constants import (
     NOTIFICATION_TIME_UNITS_PER_MS,
@@ -88,34 +88,6 @@ def notification_time_to_ms(units: int) -> float:
 # -- shared pieces ----------------------------------------------------------
 
 
-def _result_only(reader: ByteReader) -> int | None:
-    """If the payload is just a failing result, return it; else None.
-
-    Some servers answer a failed Read/ReadWrite/... with only the 4-byte
-    result instead of the full layout; accept that on decode.
-    """
-    if reader.remaining == 4:
-        result = reader.u32()
-        if result != AdsReturnCode.NO_ERROR:
-            return result
-        raise AdsCodecError(
-            f"{reader.what}: a successful response needs more than its result",
-            AdsReturnCode.DEVICE_INVALID_SIZE,
-        )
-    return None
-
-
-def _sized_data(reader: ByteReader, length: int) -> bytes:
-    """Read `length` data bytes that must be exactly the rest of the payload."""
-    if length != reader.remaining:
-        raise AdsCodecError(
-            f"{reader.what}: length field says {length} data bytes, payload has "
-            f"{reader.remaining}",
-            AdsReturnCode.DEVICE_INVALID_SIZE,
-        )
-    return reader.take(length)
-
-
 class _Payload:
     """Base of every command payload: knows its command id and direction."""
 
@@ -143,20 +115,81 @@ class AdsResponse(_Payload):
     result: int
 
 
+class _Fixed(_Payload):
+    """A payload of fixed-size fields: the dataclass fields in order, packed
+    as `layout`, then `reserved` zero bytes."""
+
+    layout: ClassVar[struct.Struct]
+    reserved: ClassVar[int] = 0
+
+    def encode(self) -> bytes:
+        values = [getattr(self, f.name) for f in fields(cast(Any, self))]
+        return _pack(self.layout.format, *values) + bytes(self.reserved)
+
+    @classmethod
+    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
+        reader = ByteReader(payload, cls.__name__)
+        if (failed := _result_only(cls, reader)) is not None:
+            return failed
+        values = cls.layout.unpack(reader.take(cls.layout.size))
+        reader.take(cls.reserved)
+        reader.expect_end()
+        return cls(*values)
+
+
+class _Sized(_Payload):
+    """Fixed fields, a data length (the layout's last field) and that many
+    bytes of `data` (the dataclass's last field)."""
+
+    layout: ClassVar[struct.Struct]
+
+    def encode(self) -> bytes:
+        *head, data = (getattr(self, f.name) for f in fields(cast(Any, self)))
+        return _pack(self.layout.format, *head, len(data)) + bytes(data)
+
+    @classmethod
+    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
+        reader = ByteReader(payload, cls.__name__)
+        if (failed := _result_only(cls, reader)) is not None:
+            return failed
+        *head, length = cls.layout.unpack(reader.take(cls.layout.size))
+        if length != reader.remaining:
+            raise AdsCodecError(
+                f"{reader.what}: length field says {length} data bytes, payload "
+                f"has {reader.remaining}",
+                AdsReturnCode.DEVICE_INVALID_SIZE,
+            )
+        return cast(Any, cls)(*head, reader.take(length))
+
+
+def _result_only(cls: type[_T], reader: ByteReader) -> _T | None:
+    """A failed response that is only its 4-byte result (some servers answer
+    a failed Read, ReadWrite, ... so): the response with that result."""
+    if not (issubclass(cls, AdsResponse) and reader.remaining == 4):
+        return None
+    layout = getattr(cls, "layout", None)
+    if layout is not None and layout.size == 4:
+        return None  # the result is the whole layout
+    result = reader.u32()
+    if result == AdsReturnCode.NO_ERROR:
+        raise AdsCodecError(
+            f"{reader.what}: a successful response needs more than its result",
+            AdsReturnCode.DEVICE_INVALID_SIZE,
+        )
+    return cls(result=result)  # type: ignore[call-arg]
+
+
+_EMPTY: Final = struct.Struct("<")
+_RESULT: Final = struct.Struct("<I")
+
+
 # -- ReadDeviceInfo (1) -----------------------------------------------------
 
 
 @dataclass(frozen=True, slots=True)
-class ReadDeviceInfoRequest(AdsRequest):
+class ReadDeviceInfoRequest(_Fixed, AdsRequest):
     command = AmsCommand.READ_DEVICE_INFO
-
-    def encode(self) -> bytes:
-        return b""
-
-    @classmethod
-    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
-        ByteReader(payload, "ReadDeviceInfo request").expect_end()
-        return cls()
+    layout = _EMPTY
 
 
 @dataclass(frozen=True, slots=True)
@@ -184,8 +217,8 @@ class ReadDeviceInfoResponse(AdsResponse):
     @classmethod
     def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
         reader = ByteReader(payload, "ReadDeviceInfo response")
-        if (result := _result_only(reader)) is not None:
-            return cls(result=result)
+        if (failed := _result_only(cls, reader)) is not None:
+            return failed
         result = reader.u32()
         major, minor, build = reader.u8(), reader.u8(), reader.u16()
         name = decode_c_string(reader.take(DEVICE_NAME_SIZE))
@@ -193,163 +226,104 @@ class ReadDeviceInfoResponse(AdsResponse):
         return cls(result, major, minor, build, name)
 
 
-# -- Read (2) ---------------------------------------------------------------
+# -- Read (2), Write (3), ReadWrite (9) ----------------------------------------
 
 
 @dataclass(frozen=True, slots=True)
-class ReadRequest(AdsRequest):
+class ReadRequest(_Fixed, AdsRequest):
     command = AmsCommand.READ
+    layout = struct.Struct("<III")
     index_group: int
     index_offset: int
     length: int
 
-    def encode(self) -> bytes:
-        return _pack("<III", self.index_group, self.index_offset, self.length)
-
-    @classmethod
-    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
-        reader = ByteReader(payload, "Read request")
-        request = cls(reader.u32(), reader.u32(), reader.u32())
-        reader.expect_end()
-        return request
-
 
 @dataclass(frozen=True, slots=True)
-class ReadResponse(AdsResponse):
+class ReadResponse(_Sized, AdsResponse):
     command = AmsCommand.READ
+    layout = struct.Struct("<II")
     result: int = AdsReturnCode.NO_ERROR
     data: bytes = b""
 
-    def encode(self) -> bytes:
-        return _pack("<II", self.result, len(self.data)) + bytes(self.data)
-
-    @classmethod
-    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
-        reader = ByteReader(payload, "Read response")
-        if (result := _result_only(reader)) is not None:
-            return cls(result=result)
-        result = reader.u32()
-        return cls(result, _sized_data(reader, reader.u32()))
-
-
-# -- Write (3) --------------------------------------------------------------
-
 
 @dataclass(frozen=True, slots=True)
-class WriteRequest(AdsRequest):
+class WriteRequest(_Sized, AdsRequest):
     command = AmsCommand.WRITE
+    layout = struct.Struct("<III")
     index_group: int
     index_offset: int
     data: bytes = b""
 
-    def encode(self) -> bytes:
-        header = _pack("<III", self.index_group, self.index_offset, len(self.data))
-        return header + bytes(self.data)
-
-    @classmethod
-    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
-        reader = ByteReader(payload, "Write request")
-        group, offset, length = reader.u32(), reader.u32(), reader.u32()
-        return cls(group, offset, _sized_data(reader, length))
-
 
 @dataclass(frozen=True, slots=True)
-class WriteResponse(AdsResponse):
+class WriteResponse(_Fixed, AdsResponse):
     command = AmsCommand.WRITE
+    layout = _RESULT
     result: int = AdsReturnCode.NO_ERROR
 
-    def encode(self) -> bytes:
-        return _pack("<I", self.result)
 
-    @classmethod
-    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
-        reader = ByteReader(payload, "Write response")
-        response = cls(reader.u32())
-        reader.expect_end()
-        return response
-
-
-# -- ReadState (4) ----------------------------------------------------------
+@dataclass(frozen=True, slots=True)
+class ReadWriteRequest(_Sized, AdsRequest):
+    command = AmsCommand.READ_WRITE
+    layout = struct.Struct("<IIII")
+    index_group: int
+    index_offset: int
+    read_length: int
+    data: bytes = b""
 
 
 @dataclass(frozen=True, slots=True)
-class ReadStateRequest(AdsRequest):
-    command = AmsCommand.READ_STATE
+class ReadWriteResponse(_Sized, AdsResponse):
+    command = AmsCommand.READ_WRITE
+    layout = struct.Struct("<II")
+    result: int = AdsReturnCode.NO_ERROR
+    data: bytes = b""
 
-    def encode(self) -> bytes:
-        return b""
 
-    @classmethod
-    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
-        ByteReader(payload, "ReadState request").expect_end()
-        return cls()
+# -- ReadState (4), WriteControl (5) -----------------------------------------
 
 
 @dataclass(frozen=True, slots=True)
-class ReadStateResponse(AdsResponse):
+class ReadStateRequest(_Fixed, AdsRequest):
     command = AmsCommand.READ_STATE
+    layout = _EMPTY
+
+
+@dataclass(frozen=True, slots=True)
+class ReadStateResponse(_Fixed, AdsResponse):
+    command = AmsCommand.READ_STATE
+    layout = struct.Struct("<IHH")
     result: int = AdsReturnCode.NO_ERROR
     ads_state: int = 0
     device_state: int = 0
 
-    def encode(self) -> bytes:
-        return _pack("<IHH", self.result, self.ads_state, self.device_state)
-
-    @classmethod
-    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
-        reader = ByteReader(payload, "ReadState response")
-        if (result := _result_only(reader)) is not None:
-            return cls(result=result)
-        response = cls(reader.u32(), reader.u16(), reader.u16())
-        reader.expect_end()
-        return response
-
-
-# -- WriteControl (5) -------------------------------------------------------
-
 
 @dataclass(frozen=True, slots=True)
-class WriteControlRequest(AdsRequest):
+class WriteControlRequest(_Sized, AdsRequest):
     command = AmsCommand.WRITE_CONTROL
+    layout = struct.Struct("<HHI")
     ads_state: int
     device_state: int = 0
     data: bytes = b""
 
-    def encode(self) -> bytes:
-        header = _pack("<HHI", self.ads_state, self.device_state, len(self.data))
-        return header + bytes(self.data)
-
-    @classmethod
-    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
-        reader = ByteReader(payload, "WriteControl request")
-        ads_state, device_state, length = reader.u16(), reader.u16(), reader.u32()
-        return cls(ads_state, device_state, _sized_data(reader, length))
-
 
 @dataclass(frozen=True, slots=True)
-class WriteControlResponse(AdsResponse):
+class WriteControlResponse(_Fixed, AdsResponse):
     command = AmsCommand.WRITE_CONTROL
+    layout = _RESULT
     result: int = AdsReturnCode.NO_ERROR
 
-    def encode(self) -> bytes:
-        return _pack("<I", self.result)
 
-    @classmethod
-    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
-        reader = ByteReader(payload, "WriteControl response")
-        response = cls(reader.u32())
-        reader.expect_end()
-        return response
-
-
-# -- AddDeviceNotification (6) ----------------------------------------------
+# -- Add / DeleteDeviceNotification (6, 7) ------------------------------------
 
 
 @dataclass(frozen=True, slots=True)
-class AddDeviceNotificationRequest(AdsRequest):
+class AddDeviceNotificationRequest(_Fixed, AdsRequest):
     """Max delay and cycle time are in 100 ns units (ms x 10 000)."""
 
     command = AmsCommand.ADD_DEVICE_NOTIFICATION
+    layout = struct.Struct("<IIIIII")
+    reserved = NOTIFICATION_RESERVED_SIZE
     index_group: int
     index_offset: int
     length: int
@@ -357,78 +331,27 @@ class AddDeviceNotificationRequest(AdsRequest):
     max_delay: int = 0
     cycle_time: int = 0
 
-    def encode(self) -> bytes:
-        return _pack(
-            "<IIIIII",
-            self.index_group,
-            self.index_offset,
-            self.length,
-            self.transmission_mode,
-            self.max_delay,
-            self.cycle_time,
-        ) + bytes(NOTIFICATION_RESERVED_SIZE)
-
-    @classmethod
-    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
-        reader = ByteReader(payload, "AddDeviceNotification request")
-        request = cls(*(reader.u32() for _ in range(6)))
-        reader.take(NOTIFICATION_RESERVED_SIZE)
-        reader.expect_end()
-        return request
-
 
 @dataclass(frozen=True, slots=True)
-class AddDeviceNotificationResponse(AdsResponse):
+class AddDeviceNotificationResponse(_Fixed, AdsResponse):
     command = AmsCommand.ADD_DEVICE_NOTIFICATION
+    layout = struct.Struct("<II")
     result: int = AdsReturnCode.NO_ERROR
     handle: int = 0
 
-    def encode(self) -> bytes:
-        return _pack("<II", self.result, self.handle)
-
-    @classmethod
-    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
-        reader = ByteReader(payload, "AddDeviceNotification response")
-        if (result := _result_only(reader)) is not None:
-            return cls(result=result)
-        response = cls(reader.u32(), reader.u32())
-        reader.expect_end()
-        return response
-
-
-# -- DeleteDeviceNotification (7) -------------------------------------------
-
 
 @dataclass(frozen=True, slots=True)
-class DeleteDeviceNotificationRequest(AdsRequest):
+class DeleteDeviceNotificationRequest(_Fixed, AdsRequest):
     command = AmsCommand.DELETE_DEVICE_NOTIFICATION
+    layout = _RESULT
     handle: int
 
-    def encode(self) -> bytes:
-        return _pack("<I", self.handle)
-
-    @classmethod
-    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
-        reader = ByteReader(payload, "DeleteDeviceNotification request")
-        request = cls(reader.u32())
-        reader.expect_end()
-        return request
-
 
 @dataclass(frozen=True, slots=True)
-class DeleteDeviceNotificationResponse(AdsResponse):
+class DeleteDeviceNotificationResponse(_Fixed, AdsResponse):
     command = AmsCommand.DELETE_DEVICE_NOTIFICATION
+    layout = _RESULT
     result: int = AdsReturnCode.NO_ERROR
-
-    def encode(self) -> bytes:
-        return _pack("<I", self.result)
-
-    @classmethod
-    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
-        reader = ByteReader(payload, "DeleteDeviceNotification response")
-        response = cls(reader.u32())
-        reader.expect_end()
-        return response
 
 
 # -- DeviceNotification (8, server -> client, never answered) ---------------
@@ -494,53 +417,6 @@ class DeviceNotification(AdsRequest):
             stamps.append(NotificationStamp(timestamp, tuple(samples)))
         reader.expect_end()
         return cls(tuple(stamps))
-
-
-# -- ReadWrite (9) ----------------------------------------------------------
-
-
-@dataclass(frozen=True, slots=True)
-class ReadWriteRequest(AdsRequest):
-    command = AmsCommand.READ_WRITE
-    index_group: int
-    index_offset: int
-    read_length: int
-    data: bytes = b""
-
-    def encode(self) -> bytes:
-        header = _pack(
-            "<IIII",
-            self.index_group,
-            self.index_offset,
-            self.read_length,
-            len(self.data),
-        )
-        return header + bytes(self.data)
-
-    @classmethod
-    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
-        reader = ByteReader(payload, "ReadWrite request")
-        group, offset = reader.u32(), reader.u32()
-        read_length, write_length = reader.u32(), reader.u32()
-        return cls(group, offset, read_length, _sized_data(reader, write_length))
-
-
-@dataclass(frozen=True, slots=True)
-class ReadWriteResponse(AdsResponse):
-    command = AmsCommand.READ_WRITE
-    result: int = AdsReturnCode.NO_ERROR
-    data: bytes = b""
-
-    def encode(self) -> bytes:
-        return _pack("<II", self.result, len(self.data)) + bytes(self.data)
-
-    @classmethod
-    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
-        reader = ByteReader(payload, "ReadWrite response")
-        if (result := _result_only(reader)) is not None:
-            return cls(result=result)
-        result = reader.u32()
-        return cls(result, _sized_data(reader, reader.u32()))
 
 
 # -- dispatch ---------------------------------------------------------------

@@ -44,11 +44,10 @@ from fastcs_ethercat.ads.ratelimit import RateLimitedLog
 from fastcs_ethercat.ads.session import (
     MAX_FRAME_SIZE,
     Answered,
+    BadFrame,
     Broken,
     ClientSession,
-    Dropped,
     Event,
-    Failed,
     Late,
     Malformed,
     Notified,
@@ -412,12 +411,13 @@ class AmsTcpConnection:
                 owner = self._ports.get(event.port)
                 if owner is not None:
                     owner.notified(event.source, event.stamps)
-            case Failed():
+            case BadFrame():
                 self._malformed(event.kind, event.detail)
-                waiter = self._waiting.get(event.invoke_id)
-                if waiter is not None:
+                invoke_id = event.invoke_id
+                waiter = None if invoke_id is None else self._waiting.get(invoke_id)
+                if invoke_id is not None and waiter is not None:
                     self._finish(
-                        event.invoke_id,
+                        invoke_id,
                         AdsProtocolError(
                             AdsReturnCode.CLIENT_SYNC_RES_INVALID,
                             waiter.operation,
@@ -425,8 +425,6 @@ class AmsTcpConnection:
                             f"{event.kind}: {event.detail}",
                         ),
                     )
-            case Dropped():
-                self._malformed(event.kind, event.detail)
             case Late():
                 self.stats.late_answers += 1
                 logger.debug("%s: late answer to invoke id %d", self, event.invoke_id)

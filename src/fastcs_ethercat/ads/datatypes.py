@@ -18,8 +18,14 @@ from typing import Final, Self
 
 from fastcs_ethercat.ads.constants import AdsDataType, AdsReturnCode, DataTypeFlag
 from fastcs_ethercat.ads.errors import AdsCodecError
-from fastcs_ethercat.ads.symbols import data_type_or_int
-from fastcs_ethercat.ads.wire import ByteReader, decode_text, encode_text
+from fastcs_ethercat.ads.wire import (
+    ByteReader,
+    decode_whole,
+    encode_text,
+    enum_or_int,
+    iter_entries,
+    read_c_string,
+)
 
 DATA_TYPE_ENTRY_HEADER_SIZE: Final = 42
 DATA_TYPE_ENTRY_ALIGNMENT: Final = 8
@@ -124,13 +130,7 @@ class AdsDataTypeEntry:
     @classmethod
     def decode(cls, raw: bytes | bytearray | memoryview) -> Self:
         """Decode one entry that fills `raw` exactly."""
-        entry, used = cls.decode_at(raw)
-        if used != len(raw):
-            raise AdsCodecError(
-                f"data type entry is {used} bytes, buffer has {len(raw)}",
-                AdsReturnCode.DEVICE_INVALID_SIZE,
-            )
-        return entry
+        return decode_whole(raw, cls.decode_at)
 
     @classmethod
     def decode_at(
@@ -177,9 +177,9 @@ class AdsDataTypeEntry:
             )
         # Bound the reader to this entry so nothing spills into the next one.
         reader = ByteReader(data, what, start=reader.position, end=end)
-        name = _c_string(reader, name_length, "name")
-        type_name = _c_string(reader, type_length, "type name")
-        comment = _c_string(reader, comment_length, "comment")
+        name = read_c_string(reader, name_length, "name")
+        type_name = read_c_string(reader, type_length, "type name")
+        comment = read_c_string(reader, comment_length, "comment")
         dimensions = tuple(
             ArrayDimension(*_DIMENSION.unpack(reader.take(_DIMENSION.size)))
             for _ in range(dimension_count)
@@ -195,7 +195,7 @@ class AdsDataTypeEntry:
             name=name,
             type_name=type_name,
             size=size,
-            data_type=data_type_or_int(data_type),
+            data_type=enum_or_int(AdsDataType, data_type),
             flags=flags,
             offset=member_offset,
             comment=comment,
@@ -212,30 +212,11 @@ class AdsDataTypeEntry:
 _MAX_DEPTH: Final = 32
 
 
-def _c_string(reader: ByteReader, length: int, what: str) -> str:
-    text = reader.take(length)
-    if reader.take(1) != b"\0":
-        raise AdsCodecError(
-            f"{reader.what}: {what} of {length} bytes is not NUL-terminated",
-            AdsReturnCode.DEVICE_INVALID_DATA,
-        )
-    return decode_text(text)
-
-
 def iter_data_type_table(
     table: bytes | bytearray | memoryview, count: int | None = None
 ) -> Iterator[AdsDataTypeEntry]:
     """Walk a 0xF00E table by entry lengths (stop after `count` if given)."""
-    data = bytes(table)
-    position = 0
-    seen = 0
-    while (count is None and position < len(data)) or (
-        count is not None and seen < count
-    ):
-        entry, used = AdsDataTypeEntry.decode_at(data, position)
-        yield entry
-        position += used
-        seen += 1
+    return iter_entries(table, AdsDataTypeEntry.decode_at, count)
 
 
 def decode_data_type_table(

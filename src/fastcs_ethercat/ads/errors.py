@@ -156,24 +156,3 @@ def ads_error(
     elif unreachable(code):
         kind = AdsConnectionError
     return kind(code, operation, target, detail)
-
-
-__all__ = [
-    "HANDLE_ERRORS",
-    "SOCKET_ERRORS",
-    "AdsCodecError",
-    "AdsConnectTimeoutError",
-    "AdsConnectionError",
-    "AdsConnectionLostError",
-    "AdsConnectionRefusedError",
-    "AdsError",
-    "AdsHandleInvalidError",
-    "AdsHostUnreachableError",
-    "AdsProtocolError",
-    "AdsRouteError",
-    "AdsSymbolError",
-    "AdsTimeoutError",
-    "AdsUnknownHostError",
-    "ads_error",
-    "unreachable",
-]

@@ -25,6 +25,7 @@ from fastcs_ethercat.ads.constants import (
 )
 from fastcs_ethercat.ads.errors import AdsCodecError
 from fastcs_ethercat.ads.netid import AmsAddress, AmsNetId
+from fastcs_ethercat.ads.wire import enum_or_int
 
 _TCP_HEADER: Final = struct.Struct("<HI")
 _AMS_HEADER: Final = struct.Struct("<6sH6sHHHIII")
@@ -35,14 +36,6 @@ DEFAULT_MAX_FRAME_SIZE: Final = 16 * 1024 * 1024
 
 class FrameTooLargeError(AdsCodecError):
     """An AMS/TCP length beyond the reassembler's maximum frame size."""
-
-
-def command_or_int(command_id: int) -> AmsCommand | int:
-    """The AmsCommand for a known id, the bare int for an unknown one."""
-    try:
-        return AmsCommand(command_id)
-    except ValueError:
-        return command_id
 
 
 @dataclass(frozen=True, slots=True)
@@ -137,7 +130,7 @@ def decode_ams(data: bytes | bytearray | memoryview) -> AmsPacket:
     return AmsPacket(
         target=AmsAddress(AmsNetId.from_bytes(target_netid), target_port),
         source=AmsAddress(AmsNetId.from_bytes(source_netid), source_port),
-        command=command_or_int(command_id),
+        command=enum_or_int(AmsCommand, command_id),
         state_flags=state_flags,
         error_code=error_code,
         invoke_id=invoke_id,

@@ -7,8 +7,8 @@ the AMS/TCP length against a maximum frame size, the AMS header against the
 frame (data length, response flag, command id), the invoke id against the
 requests in flight, the source and command against the request, and the
 payload against the command's layout and the length asked for. A frame that
-fails one of these is reported as `Malformed` (kind and detail) and dropped;
-if it answered a request in flight, that request gets `Failed`. When the
+fails one of these is a `BadFrame` (its `Malformed` kind and a detail) and
+dropped; if it answered a request in flight, that request fails. When the
 AMS/TCP framing itself is lost (a length beyond the limit, a non-zero
 reserved field) the stream cannot be resynchronised: `Broken` ends it and
 every request in flight fails with it. The asyncio layer
@@ -88,15 +88,6 @@ class Answered:
 
 
 @dataclass(frozen=True, slots=True)
-class Failed:
-    """Request `invoke_id` got a malformed answer."""
-
-    invoke_id: int
-    kind: Malformed
-    detail: str
-
-
-@dataclass(frozen=True, slots=True)
 class Notified:
     """A DeviceNotification for our port `port` from `source`."""
 
@@ -106,11 +97,13 @@ class Notified:
 
 
 @dataclass(frozen=True, slots=True)
-class Dropped:
-    """A malformed frame that answered nothing: counted and dropped."""
+class BadFrame:
+    """A malformed frame, dropped; when it answered request `invoke_id`,
+    that request fails with it."""
 
     kind: Malformed
     detail: str
+    invoke_id: int | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -129,7 +122,7 @@ class Broken:
     failed: tuple[int, ...]
 
 
-Event = Answered | Failed | Notified | Dropped | Late | Broken
+Event = Answered | Notified | BadFrame | Late | Broken
 
 
 @dataclass(frozen=True, slots=True)
@@ -218,7 +211,7 @@ class ClientSession:
         if not packet.is_response:
             if packet.command == AmsCommand.DEVICE_NOTIFICATION:
                 return self._notification(packet)
-            return Dropped(
+            return BadFrame(
                 Malformed.UNEXPECTED,
                 f"request (command {int(packet.command)}) from {packet.source}",
             )
@@ -227,7 +220,7 @@ class ClientSession:
             if packet.invoke_id in self._forgotten:
                 del self._forgotten[packet.invoke_id]
                 return Late(packet.invoke_id)
-            return Dropped(
+            return BadFrame(
                 Malformed.INVOKE_ID,
                 f"response with invoke id {packet.invoke_id} to no request",
             )
@@ -260,13 +253,13 @@ class ClientSession:
         try:
             stamps = DeviceNotification.decode(packet.payload).stamps
         except AdsCodecError as error:
-            return Dropped(Malformed.NOTIFICATION, f"from {packet.source}: {error}")
+            return BadFrame(Malformed.NOTIFICATION, f"from {packet.source}: {error}")
         return Notified(packet.target.port, packet.source, stamps)
 
-    def _fail(self, invoke_id: int | None, kind: Malformed, detail: str) -> Event:
+    def _fail(self, invoke_id: int | None, kind: Malformed, detail: str) -> BadFrame:
         if invoke_id is not None and self._in_flight.pop(invoke_id, None):
-            return Failed(invoke_id, kind, detail)
-        return Dropped(kind, detail)
+            return BadFrame(kind, detail, invoke_id)
+        return BadFrame(kind, detail)
 
     def _allocate(self) -> int:
         invoke_id = self._next_invoke_id
@@ -299,11 +292,10 @@ def _check_length(response: AdsResponse, max_data: int | None) -> None:
 __all__ = [
     "MAX_FRAME_SIZE",
     "Answered",
+    "BadFrame",
     "Broken",
     "ClientSession",
-    "Dropped",
     "Event",
-    "Failed",
     "Late",
     "Malformed",
     "Notified",

@@ -18,7 +18,15 @@ from typing import Final, Self
 
 from fastcs_ethercat.ads.constants import AdsDataType, AdsReturnCode
 from fastcs_ethercat.ads.errors import AdsCodecError
-from fastcs_ethercat.ads.wire import ByteReader, decode_text, encode_text
+from fastcs_ethercat.ads.wire import (
+    ByteReader,
+    decode_text,
+    decode_whole,
+    encode_text,
+    enum_or_int,
+    iter_entries,
+    read_c_string,
+)
 
 SYMBOL_ENTRY_HEADER_SIZE: Final = 30
 SYMBOL_ENTRY_ALIGNMENT: Final = 8
@@ -33,14 +41,6 @@ _UPLOAD_INFO_2: Final = struct.Struct("<IIIIII")
 
 def _padded(length: int, alignment: int) -> int:
     return -(-length // alignment) * alignment if alignment > 1 else length
-
-
-def data_type_or_int(value: int) -> AdsDataType | int:
-    """The AdsDataType for a known id, the bare int otherwise."""
-    try:
-        return AdsDataType(value)
-    except ValueError:
-        return value
 
 
 @dataclass(frozen=True, slots=True)
@@ -90,13 +90,7 @@ class AdsSymbolEntry:
     @classmethod
     def decode(cls, raw: bytes | bytearray | memoryview) -> Self:
         """Decode one entry that fills `raw` exactly (e.g. a 0xF009 answer)."""
-        entry, used = cls.decode_at(raw)
-        if used != len(raw):
-            raise AdsCodecError(
-                f"symbol entry is {used} bytes, buffer has {len(raw)}",
-                AdsReturnCode.DEVICE_INVALID_SIZE,
-            )
-        return entry
+        return decode_whole(raw, cls.decode_at)
 
     @classmethod
     def decode_at(
@@ -132,16 +126,16 @@ class AdsSymbolEntry:
                 f"runs past the end of the buffer ({len(data) - offset} bytes left)",
                 AdsReturnCode.DEVICE_INVALID_SIZE,
             )
-        name = _c_string(reader, name_length, "name")
-        type_name = _c_string(reader, type_length, "type name")
-        comment = _c_string(reader, comment_length, "comment")
+        name = read_c_string(reader, name_length, "name")
+        type_name = read_c_string(reader, type_length, "type name")
+        comment = read_c_string(reader, comment_length, "comment")
         extra = reader.take(entry_length - strings_end)
         entry = cls(
             name=name,
             index_group=index_group,
             index_offset=index_offset,
             size=size,
-            data_type=data_type_or_int(data_type),
+            data_type=enum_or_int(AdsDataType, data_type),
             type_name=type_name,
             comment=comment,
             flags=flags,
@@ -157,17 +151,6 @@ def decode_symbol_entry(
     return AdsSymbolEntry.decode_at(raw, offset)
 
 
-def _c_string(reader: ByteReader, length: int, what: str) -> str:
-    """A string of known length that must be followed by its NUL."""
-    text = reader.take(length)
-    if reader.take(1) != b"\0":
-        raise AdsCodecError(
-            f"{reader.what}: {what} of {length} bytes is not NUL-terminated",
-            AdsReturnCode.DEVICE_INVALID_DATA,
-        )
-    return decode_text(text)
-
-
 def iter_symbol_table(
     table: bytes | bytearray | memoryview, count: int | None = None
 ) -> Iterator[AdsSymbolEntry]:
@@ -176,16 +159,7 @@ def iter_symbol_table(
     With `count` (from 0xF00F), stop after that many entries, as pyads does;
     without it, walk to the end of the buffer.
     """
-    data = bytes(table)
-    position = 0
-    seen = 0
-    while (count is None and position < len(data)) or (
-        count is not None and seen < count
-    ):
-        entry, used = decode_symbol_entry(data, position)
-        yield entry
-        position += used
-        seen += 1
+    return iter_entries(table, AdsSymbolEntry.decode_at, count)
 
 
 def decode_symbol_table(

@@ -19,7 +19,12 @@ from typing import Final, Self
 from fastcs_ethercat.ads.constants import AdsReturnCode, AmsPort
 from fastcs_ethercat.ads.errors import AdsCodecError
 from fastcs_ethercat.ads.netid import AmsNetId
-from fastcs_ethercat.ads.wire import ByteReader, decode_c_string, encode_text
+from fastcs_ethercat.ads.wire import (
+    ByteReader,
+    decode_c_string,
+    encode_text,
+    enum_or_int,
+)
 
 UDP_MAGIC: Final = 0x71146603
 UDP_HEADER_SIZE: Final = 24
@@ -141,7 +146,7 @@ class UdpPacket:
         tags: list[UdpTagValue] = []
         for _ in range(tag_count):
             tag_id, length = reader.u16(), reader.u16()
-            tags.append(UdpTagValue(_tag_or_int(tag_id), reader.take(length)))
+            tags.append(UdpTagValue(enum_or_int(UdpTag, tag_id), reader.take(length)))
         reader.expect_end()
         return cls(service, AmsNetId.from_bytes(netid), tuple(tags), port, invoke_id)
 
@@ -153,13 +158,6 @@ def _u32(value: int) -> bytes:
         raise AdsCodecError(
             f"{value} does not fit in u32", AdsReturnCode.DEVICE_INVALID_DATA
         ) from error
-
-
-def _tag_or_int(tag_id: int) -> UdpTag | int:
-    try:
-        return UdpTag(tag_id)
-    except ValueError:
-        return tag_id
 
 
 # -- the packets pyads sends and expects ------------------------------------

@@ -8,7 +8,9 @@ built on it keeps the codec's promise of a single exception type.
 from __future__ import annotations
 
 import struct
-from typing import Final
+from collections.abc import Callable, Iterator
+from enum import IntEnum
+from typing import Final, TypeVar
 
 from fastcs_ethercat.ads.constants import AdsReturnCode
 from fastcs_ethercat.ads.errors import AdsCodecError
@@ -17,6 +19,9 @@ U8: Final = struct.Struct("<B")
 U16: Final = struct.Struct("<H")
 U32: Final = struct.Struct("<I")
 U64: Final = struct.Struct("<Q")
+
+_T = TypeVar("_T")
+_E = TypeVar("_E", bound=IntEnum)
 
 STRING_ENCODING: Final = "windows-1252"
 """TwinCAT writes names, type names and comments in the Windows code page."""
@@ -120,3 +125,57 @@ def check_u16(value: int, what: str) -> int:
             f"{what}={value} does not fit in u16", AdsReturnCode.DEVICE_INVALID_DATA
         )
     return value
+
+
+def read_c_string(reader: ByteReader, length: int, what: str) -> str:
+    """A string of known length that must be followed by its NUL."""
+    text = reader.take(length)
+    if reader.take(1) != b"\0":
+        raise AdsCodecError(
+            f"{reader.what}: {what} of {length} bytes is not NUL-terminated",
+            AdsReturnCode.DEVICE_INVALID_DATA,
+        )
+    return decode_text(text)
+
+
+EntryDecoder = Callable[[bytes, int], tuple[_T, int]]
+"""decode_at(buffer, offset) -> (entry, its length in bytes)."""
+
+
+def iter_entries(
+    table: bytes | bytearray | memoryview,
+    decode_at: EntryDecoder[_T],
+    count: int | None = None,
+) -> Iterator[_T]:
+    """Walk a table of length-prefixed entries (symbols, data types) by each
+    entry's own length; stop after `count` if given, else at the end."""
+    data = bytes(table)
+    position = seen = 0
+    while position < len(data) if count is None else seen < count:
+        entry, used = decode_at(data, position)
+        yield entry
+        position += used
+        seen += 1
+
+
+def decode_whole(
+    raw: bytes | bytearray | memoryview, decode_at: EntryDecoder[_T]
+) -> _T:
+    """The one entry that fills `raw` exactly (e.g. a 0xF009 answer)."""
+    data = bytes(raw)
+    entry, used = decode_at(data, 0)
+    if used != len(data):
+        raise AdsCodecError(
+            f"entry is {used} bytes, buffer has {len(data)}",
+            AdsReturnCode.DEVICE_INVALID_SIZE,
+        )
+    return entry
+
+
+def enum_or_int(kind: type[_E], value: int) -> _E | int:
+    """The member of `kind` for a known value, the bare int for another
+    (a peer may send ids this codec does not name)."""
+    try:
+        return kind(value)
+    except ValueError:
+        return value

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import struct
 from dataclasses import dataclass, field
-from typing import Final
+from typing import Final, TypeVar
 
 import numpy as np
 import numpy.typing as npt
@@ -51,7 +51,7 @@ from fastcs_ethercat.ads.sums import (
 )
 from fastcs_ethercat.ads.wire import decode_text
 from fastcs_ethercat.sim.device import SimDevice
-from fastcs_ethercat.sim.itemfaults import FailingBits, item_error
+from fastcs_ethercat.sim.itemfaults import item_error
 from fastcs_ethercat.sim.layout import AREAS, INPUTS, OUTPUTS, ImageArea
 from fastcs_ethercat.sim.master import SlaveRuntime
 
@@ -76,6 +76,7 @@ _SUM_GROUPS: Final = frozenset(
 _U32: Final = struct.Struct("<I")
 
 Outcome = tuple[int, bytes]
+_Sum = TypeVar("_Sum", SumReadRequest, SumWriteRequest, SumReadWriteRequest)
 
 
 @dataclass(slots=True)
@@ -312,62 +313,54 @@ class DevicePort(Port):
 
     # -- sum commands ---------------------------------------------------------
 
-    def _too_many(self, count: int) -> bool:
-        """More sub-commands than the limit (500): the whole request is refused."""
-        return count > self.dev.system.max_sum_items or count == 0
+    def _sum_request(self, kind: type[_Sum], count: int, data: bytes) -> _Sum | int:
+        """The decoded sum request, or the code that refuses all of it: more
+        sub-commands than the limit (500, 0x705), or a malformed one."""
+        if count > self.dev.system.max_sum_items or count == 0:
+            return AdsReturnCode.DEVICE_INVALID_SIZE
+        try:
+            return kind.decode(data, count)
+        except AdsCodecError as error:
+            return error.return_code
 
     def _sum_read(self, count: int, length: int, data: bytes) -> Outcome:
-        if self._too_many(count):
-            return AdsReturnCode.DEVICE_INVALID_SIZE, b""
         image = self.dev.image
         failing = self.dev.failing()
-        if failing:
-            return self._sum_read_failing(count, length, data, failing)
-        plan = self.plans.lookup(data, image.inputs, image.outputs)
+        plan = None if failing else self.plans.lookup(data, image.inputs, image.outputs)
         if plan is not None and plan.count == count:
             if length < plan.read_length:
                 return AdsReturnCode.DEVICE_INVALID_SIZE, b""
             return AdsReturnCode.NO_ERROR, plan.answer(image.inputs, image.outputs)
-        try:
-            request = SumReadRequest.decode(data, count)
-        except AdsCodecError as error:
-            return error.return_code, b""
-        if not self.plans.knows(data):
-            self.plans.learn(data, request.items, image.inputs, image.outputs)
+        request = self._sum_request(SumReadRequest, count, data)
+        if isinstance(request, int):
+            return request, b""
         if length < request.read_length:
             return AdsReturnCode.DEVICE_INVALID_SIZE, b""
-        # The hot path: plain slices of the images, single bits by lookup.
-        areas = {area.byte_group: image.buffer(area) for area in AREAS}
-        bits = {area.bit_group: image.buffer(area) for area in AREAS}
-        outcomes = [
-            _slice(areas[i.index_group], i.index_offset, i.length)
-            if i.index_group in areas
-            else _bit(bits[i.index_group], i.index_offset)
-            if i.length == 1 and i.index_group in bits
-            else self._sub_read(i.index_group, i.index_offset, i.length)
-            for i in request.items
-        ]
-        return AdsReturnCode.NO_ERROR, SumReadResponse.for_items(
-            request.items, outcomes
-        ).encode()
-
-    def _sum_read_failing(
-        self, count: int, length: int, data: bytes, failing: list[FailingBits]
-    ) -> Outcome:
-        """A sum read while symbols fail: items touching one answer its error
-        (zero data), the others their values; no fast path."""
-        try:
-            request = SumReadRequest.decode(data, count)
-        except AdsCodecError as error:
-            return error.return_code, b""
-        if length < request.read_length:
-            return AdsReturnCode.DEVICE_INVALID_SIZE, b""
-        outcomes = [
-            (code, b"")
-            if (code := item_error(failing, i.index_group, i.index_offset, i.length))
-            else self._sub_read(i.index_group, i.index_offset, i.length)
-            for i in request.items
-        ]
+        if failing:
+            # Items touching a failing symbol answer its error (zero data),
+            # the others their values; no fast path.
+            outcomes = [
+                (code, b"")
+                if (
+                    code := item_error(failing, i.index_group, i.index_offset, i.length)
+                )
+                else self._sub_read(i.index_group, i.index_offset, i.length)
+                for i in request.items
+            ]
+        else:
+            if not self.plans.knows(data):
+                self.plans.learn(data, request.items, image.inputs, image.outputs)
+            # The hot path: plain slices of the images, single bits by lookup.
+            areas = {area.byte_group: image.buffer(area) for area in AREAS}
+            bits = {area.bit_group: image.buffer(area) for area in AREAS}
+            outcomes = [
+                _slice(areas[i.index_group], i.index_offset, i.length)
+                if i.index_group in areas
+                else _bit(bits[i.index_group], i.index_offset)
+                if i.length == 1 and i.index_group in bits
+                else self._sub_read(i.index_group, i.index_offset, i.length)
+                for i in request.items
+            ]
         return AdsReturnCode.NO_ERROR, SumReadResponse.for_items(
             request.items, outcomes
         ).encode()
@@ -383,12 +376,9 @@ class DevicePort(Port):
         )
 
     def _sum_write(self, count: int, length: int, data: bytes) -> Outcome:
-        if self._too_many(count):
-            return AdsReturnCode.DEVICE_INVALID_SIZE, b""
-        try:
-            request = SumWriteRequest.decode(data, count)
-        except AdsCodecError as error:
-            return error.return_code, b""
+        request = self._sum_request(SumWriteRequest, count, data)
+        if isinstance(request, int):
+            return request, b""
         if length < request.read_length:
             return AdsReturnCode.DEVICE_INVALID_SIZE, b""
         results = tuple(
@@ -400,12 +390,9 @@ class DevicePort(Port):
         return AdsReturnCode.NO_ERROR, SumWriteResponse(results).encode()
 
     def _sum_read_write(self, count: int, length: int, data: bytes) -> Outcome:
-        if self._too_many(count):
-            return AdsReturnCode.DEVICE_INVALID_SIZE, b""
-        try:
-            request = SumReadWriteRequest.decode(data, count)
-        except AdsCodecError as error:
-            return error.return_code, b""
+        request = self._sum_request(SumReadWriteRequest, count, data)
+        if isinstance(request, int):
+            return request, b""
         results: list[int] = []
         values: list[bytes] = []
         for item in request.items:
