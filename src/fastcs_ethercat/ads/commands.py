@@ -21,6 +21,7 @@ from fastcs_ethercat.ads.constants import (
     AmsCommand,
 )
 from fastcs_ethercat.ads.errors import AdsCodecError
+from fastcs_ethercat.ads.frames import AmsPacket
 from fastcs_ethercat.ads.wire import ByteReader, decode_c_string, encode_text
 
 DEVICE_NAME_SIZE: Final = 16
@@ -179,17 +180,27 @@ def _result_only(cls: type[_T], reader: ByteReader) -> _T | None:
     return cls(result=result)  # type: ignore[call-arg]
 
 
-_EMPTY: Final = struct.Struct("<")
-_RESULT: Final = struct.Struct("<I")
+@dataclass(frozen=True, slots=True)
+class _NoFields(_Fixed):
+    """A request with no payload."""
+
+    layout = struct.Struct("<")
+
+
+@dataclass(frozen=True, slots=True)
+class _ResultOnly(_Fixed, AdsResponse):
+    """A response that is its result alone."""
+
+    layout = struct.Struct("<I")
+    result: int = AdsReturnCode.NO_ERROR
 
 
 # -- ReadDeviceInfo (1) -----------------------------------------------------
 
 
 @dataclass(frozen=True, slots=True)
-class ReadDeviceInfoRequest(_Fixed, AdsRequest):
+class ReadDeviceInfoRequest(_NoFields, AdsRequest):
     command = AmsCommand.READ_DEVICE_INFO
-    layout = _EMPTY
 
 
 @dataclass(frozen=True, slots=True)
@@ -256,10 +267,8 @@ class WriteRequest(_Sized, AdsRequest):
 
 
 @dataclass(frozen=True, slots=True)
-class WriteResponse(_Fixed, AdsResponse):
+class WriteResponse(_ResultOnly):
     command = AmsCommand.WRITE
-    layout = _RESULT
-    result: int = AdsReturnCode.NO_ERROR
 
 
 @dataclass(frozen=True, slots=True)
@@ -284,9 +293,8 @@ class ReadWriteResponse(_Sized, AdsResponse):
 
 
 @dataclass(frozen=True, slots=True)
-class ReadStateRequest(_Fixed, AdsRequest):
+class ReadStateRequest(_NoFields, AdsRequest):
     command = AmsCommand.READ_STATE
-    layout = _EMPTY
 
 
 @dataclass(frozen=True, slots=True)
@@ -308,10 +316,8 @@ class WriteControlRequest(_Sized, AdsRequest):
 
 
 @dataclass(frozen=True, slots=True)
-class WriteControlResponse(_Fixed, AdsResponse):
+class WriteControlResponse(_ResultOnly):
     command = AmsCommand.WRITE_CONTROL
-    layout = _RESULT
-    result: int = AdsReturnCode.NO_ERROR
 
 
 # -- Add / DeleteDeviceNotification (6, 7) ------------------------------------
@@ -343,15 +349,13 @@ class AddDeviceNotificationResponse(_Fixed, AdsResponse):
 @dataclass(frozen=True, slots=True)
 class DeleteDeviceNotificationRequest(_Fixed, AdsRequest):
     command = AmsCommand.DELETE_DEVICE_NOTIFICATION
-    layout = _RESULT
+    layout = struct.Struct("<I")
     handle: int
 
 
 @dataclass(frozen=True, slots=True)
-class DeleteDeviceNotificationResponse(_Fixed, AdsResponse):
+class DeleteDeviceNotificationResponse(_ResultOnly):
     command = AmsCommand.DELETE_DEVICE_NOTIFICATION
-    layout = _RESULT
-    result: int = AdsReturnCode.NO_ERROR
 
 
 # -- DeviceNotification (8, server -> client, never answered) ---------------
@@ -484,3 +488,14 @@ def error_response(command_id: int, result: int) -> AdsResponse:
     Raises 0x701 for commands without a response.
     """
     return _lookup(RESPONSE_TYPES, command_id, "response")(result=result)  # type: ignore[call-arg]
+
+
+def error_packet(packet: AmsPacket, code: int) -> AmsPacket:
+    """The answer to request `packet` failing with `code`: in the result field
+    of its command's response, or in the AMS header's error code for a
+    command without one."""
+    try:
+        payload = error_response(int(packet.command), code).encode()
+    except AdsCodecError:
+        return packet.response(error_code=code)
+    return packet.response(payload=payload)

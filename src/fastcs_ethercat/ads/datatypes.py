@@ -12,7 +12,7 @@ padding to the entry length. The extras are kept verbatim.
 from __future__ import annotations
 
 import struct
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Final, Self
 
@@ -212,17 +212,11 @@ class AdsDataTypeEntry:
 _MAX_DEPTH: Final = 32
 
 
-def iter_data_type_table(
-    table: bytes | bytearray | memoryview, count: int | None = None
-) -> Iterator[AdsDataTypeEntry]:
-    """Walk a 0xF00E table by entry lengths (stop after `count` if given)."""
-    return iter_entries(table, AdsDataTypeEntry.decode_at, count)
-
-
 def decode_data_type_table(
     table: bytes | bytearray | memoryview, count: int | None = None
 ) -> list[AdsDataTypeEntry]:
-    return list(iter_data_type_table(table, count))
+    """Every entry of a 0xF00E table by its entry length (`count` of them)."""
+    return list(iter_entries(table, AdsDataTypeEntry.decode_at, count))
 
 
 def encode_data_type_table(

@@ -12,7 +12,6 @@ length. Strings are Windows-1252, as TwinCAT writes them.
 from __future__ import annotations
 
 import struct
-from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Final, Self
 
@@ -151,22 +150,12 @@ def decode_symbol_entry(
     return AdsSymbolEntry.decode_at(raw, offset)
 
 
-def iter_symbol_table(
-    table: bytes | bytearray | memoryview, count: int | None = None
-) -> Iterator[AdsSymbolEntry]:
-    """Walk an upload table entry by entry, by each entry's length.
-
-    With `count` (from 0xF00F), stop after that many entries, as pyads does;
-    without it, walk to the end of the buffer.
-    """
-    return iter_entries(table, AdsSymbolEntry.decode_at, count)
-
-
 def decode_symbol_table(
     table: bytes | bytearray | memoryview, count: int | None = None
 ) -> list[AdsSymbolEntry]:
-    """All entries of an upload table (see `iter_symbol_table`)."""
-    return list(iter_symbol_table(table, count))
+    """Every entry of an upload table by its entry length; with `count` (from
+    0xF00F) only that many, as pyads does."""
+    return list(iter_entries(table, AdsSymbolEntry.decode_at, count))
 
 
 def encode_symbol_table(
