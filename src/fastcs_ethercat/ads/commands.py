@@ -22,7 +22,7 @@ from fastcs_ethercat.ads.constants import (
 )
 from fastcs_ethercat.ads.errors import AdsCodecError
 from fastcs_ethercat.ads.frames import AmsPacket
-from fastcs_ethercat.ads.wire import ByteReader, decode_c_string, encode_text
+from fastcs_ethercat.ads.wire import ByteReader, decode_c_string, encode_text, pack
 
 DEVICE_NAME_SIZE: Final = 16
 NOTIFICATION_RESERVED_SIZE: Final = 16
@@ -33,17 +33,6 @@ FILETIME_TICKS_PER_SECOND: Final = 10_000_000
 _FILETIME_START: Final = datetime(1601, 1, 1, tzinfo=UTC)
 
 _T = TypeVar("_T")
-
-
-def _pack(fmt: str, *values: int) -> bytes:
-    """struct.pack that reports out-of-range fields as a codec error."""
-    try:
-        return struct.pack(fmt, *values)
-    except struct.error as error:
-        raise AdsCodecError(
-            f"field out of range for {fmt!r}: {error}",
-            AdsReturnCode.DEVICE_INVALID_DATA,
-        ) from error
 
 
 # -- time stamps ------------------------------------------------------------
@@ -125,7 +114,7 @@ class _Fixed(_Payload):
 
     def encode(self) -> bytes:
         values = [getattr(self, f.name) for f in fields(cast(Any, self))]
-        return _pack(self.layout.format, *values) + bytes(self.reserved)
+        return pack(self.layout.format, *values) + bytes(self.reserved)
 
     @classmethod
     def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
@@ -146,7 +135,7 @@ class _Sized(_Payload):
 
     def encode(self) -> bytes:
         *head, data = (getattr(self, f.name) for f in fields(cast(Any, self)))
-        return _pack(self.layout.format, *head, len(data)) + bytes(data)
+        return pack(self.layout.format, *head, len(data)) + bytes(data)
 
     @classmethod
     def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
@@ -221,7 +210,7 @@ class ReadDeviceInfoResponse(AdsResponse):
                 f"device name {self.name!r} is longer than {DEVICE_NAME_SIZE} bytes",
                 AdsReturnCode.DEVICE_INVALID_DATA,
             )
-        return _pack("<IBBH", self.result, self.major, self.minor, self.build) + (
+        return pack("<IBBH", self.result, self.major, self.minor, self.build) + (
             name.ljust(DEVICE_NAME_SIZE, b"\0")
         )
 
@@ -391,14 +380,14 @@ class DeviceNotification(AdsRequest):
     stamps: tuple[NotificationStamp, ...] = field(default=())
 
     def encode(self) -> bytes:
-        parts = [_pack("<I", len(self.stamps))]
+        parts = [pack("<I", len(self.stamps))]
         for stamp in self.stamps:
-            parts.append(_pack("<QI", stamp.timestamp, len(stamp.samples)))
+            parts.append(pack("<QI", stamp.timestamp, len(stamp.samples)))
             for sample in stamp.samples:
-                parts.append(_pack("<II", sample.handle, len(sample.data)))
+                parts.append(pack("<II", sample.handle, len(sample.data)))
                 parts.append(bytes(sample.data))
         body = b"".join(parts)
-        return _pack("<I", len(body)) + body
+        return pack("<I", len(body)) + body
 
     @classmethod
     def decode(cls, payload: bytes | bytearray | memoryview) -> Self:

@@ -24,6 +24,7 @@ from fastcs_ethercat.ads.wire import (
     encode_text,
     enum_or_int,
     iter_entries,
+    pack,
     read_c_string,
 )
 
@@ -81,16 +82,10 @@ class AdsDataTypeEntry:
             encode_text(self.type_name),
             encode_text(self.comment),
         )
-        try:
-            dimensions = b"".join(
-                _DIMENSION.pack(d.lower_bound, d.element_count)
-                for d in self.array_dimensions
-            )
-        except struct.error as error:
-            raise AdsCodecError(
-                f"data type {self.name!r}: array dimension out of range: {error}",
-                AdsReturnCode.DEVICE_INVALID_DATA,
-            ) from error
+        dimensions = b"".join(
+            pack(_DIMENSION, d.lower_bound, d.element_count, what="array dimension")
+            for d in self.array_dimensions
+        )
         body = b"".join(
             (
                 name + b"\0",
@@ -104,27 +99,23 @@ class AdsDataTypeEntry:
         length = DATA_TYPE_ENTRY_HEADER_SIZE + len(body)
         if alignment > 1:
             length = -(-length // alignment) * alignment
-        try:
-            header = _HEADER.pack(
-                length,
-                self.version,
-                self.hash_value,
-                self.type_hash_value,
-                self.size,
-                self.offset,
-                int(self.data_type),
-                int(self.flags),
-                len(name),
-                len(type_name),
-                len(comment),
-                len(self.array_dimensions),
-                len(self.sub_items),
-            )
-        except struct.error as error:
-            raise AdsCodecError(
-                f"data type {self.name!r}: field out of range: {error}",
-                AdsReturnCode.DEVICE_INVALID_DATA,
-            ) from error
+        header = pack(
+            _HEADER,
+            length,
+            self.version,
+            self.hash_value,
+            self.type_hash_value,
+            self.size,
+            self.offset,
+            int(self.data_type),
+            int(self.flags),
+            len(name),
+            len(type_name),
+            len(comment),
+            len(self.array_dimensions),
+            len(self.sub_items),
+            what=f"data type {self.name!r} field",
+        )
         return (header + body).ljust(length, b"\0")
 
     @classmethod

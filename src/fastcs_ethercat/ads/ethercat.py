@@ -13,7 +13,6 @@ one u32 per slave, its ports added).
 
 from __future__ import annotations
 
-import struct
 from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import IntEnum, IntFlag
@@ -22,7 +21,13 @@ from typing import Final, Self
 from fastcs_ethercat.ads.constants import AdsReturnCode
 from fastcs_ethercat.ads.errors import AdsCodecError
 from fastcs_ethercat.ads.netid import AmsNetId
-from fastcs_ethercat.ads.wire import ByteReader, decode_c_string, encode_text
+from fastcs_ethercat.ads.wire import (
+    ByteReader,
+    decode_c_string,
+    encode_text,
+    exactly,
+    pack,
+)
 
 DEVICE_NAME_MAX: Final = 255
 
@@ -60,23 +65,6 @@ class LinkState(IntFlag):
     PORT_D = 0x80
 
 
-def _pack(fmt: str, *values: int) -> bytes:
-    try:
-        return struct.pack(fmt, *values)
-    except struct.error as error:
-        raise AdsCodecError(
-            f"EtherCAT field out of range: {error}", AdsReturnCode.DEVICE_INVALID_DATA
-        ) from error
-
-
-def _exact(raw: bytes | bytearray | memoryview, size: int, what: str) -> ByteReader:
-    if len(raw) != size:
-        raise AdsCodecError(
-            f"{what} is {size} bytes, got {len(raw)}", AdsReturnCode.DEVICE_INVALID_SIZE
-        )
-    return ByteReader(raw, what)
-
-
 def _u16_array(raw: bytes | bytearray | memoryview, what: str) -> tuple[int, ...]:
     if len(raw) % 2:
         raise AdsCodecError(
@@ -91,16 +79,16 @@ def _u16_array(raw: bytes | bytearray | memoryview, what: str) -> tuple[int, ...
 
 
 def encode_device_count(count: int) -> bytes:
-    return _pack("<I", count)
+    return pack("<I", count)
 
 
 def decode_device_count(raw: bytes | bytearray | memoryview) -> int:
-    return _exact(raw, 4, "device count").u32()
+    return exactly(raw, 4, "device count").u32()
 
 
 def encode_device_ids(device_ids: Sequence[int]) -> bytes:
     """u16 count, then one u16 id per device."""
-    return _pack(f"<H{len(device_ids)}H", len(device_ids), *device_ids)
+    return pack(f"<H{len(device_ids)}H", len(device_ids), *device_ids)
 
 
 def decode_device_ids(raw: bytes | bytearray | memoryview) -> tuple[int, ...]:
@@ -136,34 +124,34 @@ def decode_device_netid(raw: bytes | bytearray | memoryview) -> AmsNetId:
 
 
 def encode_device_type(device_type: int) -> bytes:
-    return _pack("<H", device_type)
+    return pack("<H", device_type)
 
 
 def decode_device_type(raw: bytes | bytearray | memoryview) -> int:
-    return _exact(raw, 2, "device type").u16()
+    return exactly(raw, 2, "device type").u16()
 
 
 # -- EtherCAT master --------------------------------------------------------
 
 
 def encode_master_state(state: int) -> bytes:
-    return _pack("<H", state)
+    return pack("<H", state)
 
 
 def decode_master_state(raw: bytes | bytearray | memoryview) -> int:
-    return _exact(raw, 2, "master state").u16()
+    return exactly(raw, 2, "master state").u16()
 
 
 def encode_slave_count(count: int) -> bytes:
-    return _pack("<H", count)
+    return pack("<H", count)
 
 
 def decode_slave_count(raw: bytes | bytearray | memoryview) -> int:
-    return _exact(raw, 2, "slave count").u16()
+    return exactly(raw, 2, "slave count").u16()
 
 
 def encode_slave_addresses(addresses: Sequence[int]) -> bytes:
-    return _pack(f"<{len(addresses)}H", *addresses)
+    return pack(f"<{len(addresses)}H", *addresses)
 
 
 def decode_slave_addresses(raw: bytes | bytearray | memoryview) -> tuple[int, ...]:
@@ -203,11 +191,11 @@ class SlaveState:
         return LinkState(self.link)
 
     def encode(self) -> bytes:
-        return _pack("<BB", self.state, self.link)
+        return pack("<BB", self.state, self.link)
 
     @classmethod
     def decode(cls, raw: bytes | bytearray | memoryview) -> Self:
-        reader = _exact(raw, 2, "slave state")
+        reader = exactly(raw, 2, "slave state")
         return cls(reader.u8(), reader.u8())
 
 
@@ -235,7 +223,7 @@ class SlaveIdentity:
     serial_number: int = 0
 
     def encode(self) -> bytes:
-        return _pack(
+        return pack(
             "<IIII",
             self.vendor_id,
             self.product_code,
@@ -245,7 +233,7 @@ class SlaveIdentity:
 
     @classmethod
     def decode(cls, raw: bytes | bytearray | memoryview) -> Self:
-        reader = _exact(raw, 16, "slave identity")
+        reader = exactly(raw, 16, "slave identity")
         return cls(reader.u32(), reader.u32(), reader.u32(), reader.u32())
 
 
@@ -264,7 +252,7 @@ class FrameCounters:
     acyclic_lost: int = 0
 
     def encode(self) -> bytes:
-        return _pack(
+        return pack(
             "<5I",
             self.time,
             self.cyclic_sent,
@@ -275,7 +263,7 @@ class FrameCounters:
 
     @classmethod
     def decode(cls, raw: bytes | bytearray | memoryview) -> Self:
-        reader = _exact(raw, 20, "frame counters")
+        reader = exactly(raw, 20, "frame counters")
         return cls(*(reader.u32() for _ in range(5)))
 
 
@@ -289,11 +277,11 @@ class CrcCounters:
     port_d: int = 0
 
     def encode(self) -> bytes:
-        return _pack("<4I", self.port_a, self.port_b, self.port_c, self.port_d)
+        return pack("<4I", self.port_a, self.port_b, self.port_c, self.port_d)
 
     @classmethod
     def decode(cls, raw: bytes | bytearray | memoryview) -> Self:
-        reader = _exact(raw, 16, "CRC counters")
+        reader = exactly(raw, 16, "CRC counters")
         return cls(*(reader.u32() for _ in range(4)))
 
     @property
@@ -305,7 +293,7 @@ class CrcCounters:
 def encode_crc_totals(totals: Sequence[int]) -> bytes:
     """Group 0x12 offset 0: per slave in bus order, its ports' CRC error
     counters added, u32 each (Beckhoff FB_EcGetAllSlaveCrcErrors)."""
-    return _pack(f"<{len(totals)}I", *totals)
+    return pack(f"<{len(totals)}I", *totals)
 
 
 def decode_crc_totals(raw: bytes | bytearray | memoryview) -> tuple[int, ...]:

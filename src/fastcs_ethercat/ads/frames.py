@@ -25,7 +25,7 @@ from fastcs_ethercat.ads.constants import (
 )
 from fastcs_ethercat.ads.errors import AdsCodecError
 from fastcs_ethercat.ads.netid import AmsAddress, AmsNetId
-from fastcs_ethercat.ads.wire import enum_or_int
+from fastcs_ethercat.ads.wire import enum_or_int, pack
 
 _TCP_HEADER: Final = struct.Struct("<HI")
 _AMS_HEADER: Final = struct.Struct("<6sH6sHHHIII")
@@ -77,23 +77,19 @@ class AmsPacket:
 
 def encode_ams_header(packet: AmsPacket) -> bytes:
     """The 32-byte AMS header of `packet` (data length from its payload)."""
-    try:
-        return _AMS_HEADER.pack(
-            packet.target.netid.to_bytes(),
-            packet.target.port,
-            packet.source.netid.to_bytes(),
-            packet.source.port,
-            int(packet.command),
-            int(packet.state_flags),
-            len(packet.payload),
-            int(packet.error_code),
-            int(packet.invoke_id),
-        )
-    except struct.error as error:
-        raise AdsCodecError(
-            f"AMS header field out of range: {error}",
-            AdsReturnCode.DEVICE_INVALID_DATA,
-        ) from error
+    return pack(
+        _AMS_HEADER,
+        packet.target.netid.to_bytes(),
+        packet.target.port,
+        packet.source.netid.to_bytes(),
+        packet.source.port,
+        int(packet.command),
+        int(packet.state_flags),
+        len(packet.payload),
+        int(packet.error_code),
+        int(packet.invoke_id),
+        what="AMS header field",
+    )
 
 
 def encode_packet(packet: AmsPacket) -> bytes:

@@ -39,7 +39,7 @@ from fastcs_ethercat.ads.constants import (
 )
 from fastcs_ethercat.ads.errors import AdsCodecError
 from fastcs_ethercat.ads.values import structured_dtype
-from fastcs_ethercat.ads.wire import ByteReader
+from fastcs_ethercat.ads.wire import ByteReader, pack
 
 _ADD_NOTIFICATION_SIZE: Final = 40
 _T = TypeVar("_T")
@@ -70,16 +70,6 @@ def chunked(
     """Split a list of sub-requests into sum requests of at most `size`."""
     for start in range(0, len(items), size):
         yield items[start : start + size]
-
-
-def _pack(fmt: str, *values: int) -> bytes:
-    try:
-        return struct.pack(fmt, *values)
-    except struct.error as error:
-        raise AdsCodecError(
-            f"sum command field out of range: {error}",
-            AdsReturnCode.DEVICE_INVALID_DATA,
-        ) from error
 
 
 def _need(raw_length: int, needed: int, what: str) -> None:
@@ -179,7 +169,7 @@ class SumReadLayout:
                     AdsReturnCode.DEVICE_INVALID_SIZE,
                 )
             blocks.append(bytes(value).ljust(length, b"\0"))
-        return _pack(f"<{self.count}I", *results) + b"".join(blocks)
+        return pack(f"<{self.count}I", *results) + b"".join(blocks)
 
 
 @dataclass(frozen=True, slots=True)
@@ -195,7 +185,7 @@ class SumReadRequest:
 
     def encode(self) -> bytes:
         return b"".join(
-            _pack("<III", i.index_group, i.index_offset, i.length) for i in self.items
+            pack("<III", i.index_group, i.index_offset, i.length) for i in self.items
         )
 
     def to_read_write(self) -> ReadWriteRequest:
@@ -269,8 +259,7 @@ class SumWriteRequest:
 
     def encode(self) -> bytes:
         headers = b"".join(
-            _pack("<III", i.index_group, i.index_offset, len(i.data))
-            for i in self.items
+            pack("<III", i.index_group, i.index_offset, len(i.data)) for i in self.items
         )
         return headers + b"".join(bytes(i.data) for i in self.items)
 
@@ -298,7 +287,7 @@ class SumWriteResponse:
     results: tuple[int, ...]
 
     def encode(self) -> bytes:
-        return _pack(f"<{len(self.results)}I", *self.results)
+        return pack(f"<{len(self.results)}I", *self.results)
 
     @classmethod
     def decode(cls, raw: bytes | bytearray | memoryview, count: int) -> Self:
@@ -332,7 +321,7 @@ class SumReadWriteRequest:
 
     def encode(self) -> bytes:
         headers = b"".join(
-            _pack("<IIII", i.index_group, i.index_offset, i.read_length, len(i.data))
+            pack("<IIII", i.index_group, i.index_offset, i.read_length, len(i.data))
             for i in self.items
         )
         return headers + b"".join(bytes(i.data) for i in self.items)
@@ -376,7 +365,7 @@ class SumReadWriteResponse:
                 AdsReturnCode.DEVICE_INVALID_SIZE,
             )
         headers = b"".join(
-            _pack("<II", result, len(data))
+            pack("<II", result, len(data))
             for result, data in zip(self.results, self.data, strict=True)
         )
         return headers + b"".join(bytes(d) for d in self.data)
@@ -444,7 +433,7 @@ class SumAddNotificationsResponse:
                 "one handle per result", AdsReturnCode.DEVICE_INVALID_SIZE
             )
         return b"".join(
-            _pack("<II", r, h) for r, h in zip(self.results, self.handles, strict=True)
+            pack("<II", r, h) for r, h in zip(self.results, self.handles, strict=True)
         )
 
     @classmethod
@@ -465,7 +454,7 @@ class SumDeleteNotificationsRequest:
         return 4 * len(self.handles)
 
     def encode(self) -> bytes:
-        return _pack(f"<{len(self.handles)}I", *self.handles)
+        return pack(f"<{len(self.handles)}I", *self.handles)
 
     def to_read_write(self) -> ReadWriteRequest:
         return ReadWriteRequest(
@@ -488,7 +477,7 @@ class SumDeleteNotificationsResponse:
     results: tuple[int, ...]
 
     def encode(self) -> bytes:
-        return _pack(f"<{len(self.results)}I", *self.results)
+        return pack(f"<{len(self.results)}I", *self.results)
 
     @classmethod
     def decode(cls, raw: bytes | bytearray | memoryview, count: int) -> Self:

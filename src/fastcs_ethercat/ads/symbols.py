@@ -24,6 +24,7 @@ from fastcs_ethercat.ads.wire import (
     encode_text,
     enum_or_int,
     iter_entries,
+    pack,
     read_c_string,
 )
 
@@ -67,23 +68,19 @@ class AdsSymbolEntry:
         )
         body = name + b"\0" + type_name + b"\0" + comment + b"\0" + bytes(self.extra)
         length = _padded(SYMBOL_ENTRY_HEADER_SIZE + len(body), alignment)
-        try:
-            header = _HEADER.pack(
-                length,
-                self.index_group,
-                self.index_offset,
-                self.size,
-                int(self.data_type),
-                self.flags,
-                len(name),
-                len(type_name),
-                len(comment),
-            )
-        except struct.error as error:
-            raise AdsCodecError(
-                f"symbol {self.name!r}: field out of range: {error}",
-                AdsReturnCode.DEVICE_INVALID_DATA,
-            ) from error
+        header = pack(
+            _HEADER,
+            length,
+            self.index_group,
+            self.index_offset,
+            self.size,
+            int(self.data_type),
+            self.flags,
+            len(name),
+            len(type_name),
+            len(comment),
+            what=f"symbol {self.name!r} field",
+        )
         return (header + body).ljust(length, b"\0")
 
     @classmethod
@@ -195,20 +192,16 @@ class SymbolUploadInfo2:
     used_dynamic_symbols: int = 0
 
     def encode(self) -> bytes:
-        try:
-            return _UPLOAD_INFO_2.pack(
-                self.symbol_count,
-                self.symbol_table_size,
-                self.data_type_count,
-                self.data_type_table_size,
-                self.max_dynamic_symbols,
-                self.used_dynamic_symbols,
-            )
-        except struct.error as error:
-            raise AdsCodecError(
-                f"upload info field out of range: {error}",
-                AdsReturnCode.DEVICE_INVALID_DATA,
-            ) from error
+        return pack(
+            _UPLOAD_INFO_2,
+            self.symbol_count,
+            self.symbol_table_size,
+            self.data_type_count,
+            self.data_type_table_size,
+            self.max_dynamic_symbols,
+            self.used_dynamic_symbols,
+            what="upload info field",
+        )
 
     @classmethod
     def decode(cls, raw: bytes | bytearray | memoryview) -> Self:

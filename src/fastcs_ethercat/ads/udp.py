@@ -24,6 +24,7 @@ from fastcs_ethercat.ads.wire import (
     decode_c_string,
     encode_text,
     enum_or_int,
+    pack,
 )
 
 UDP_MAGIC: Final = 0x71146603
@@ -106,23 +107,20 @@ class UdpPacket:
         return next((t for t in self.tags if t.tag == tag), None)
 
     def encode(self) -> bytes:
-        try:
-            head = _HEAD.pack(
-                UDP_MAGIC,
-                self.invoke_id,
-                self.service,
-                self.netid.to_bytes(),
-                self.port,
-                len(self.tags),
-            )
-            tags = b"".join(
-                _TAG.pack(int(t.tag), len(t.data)) + bytes(t.data) for t in self.tags
-            )
-        except struct.error as error:
-            raise AdsCodecError(
-                f"UDP packet field out of range: {error}",
-                AdsReturnCode.DEVICE_INVALID_DATA,
-            ) from error
+        head = pack(
+            _HEAD,
+            UDP_MAGIC,
+            self.invoke_id,
+            self.service,
+            self.netid.to_bytes(),
+            self.port,
+            len(self.tags),
+            what="UDP packet field",
+        )
+        tags = b"".join(
+            pack(_TAG, int(t.tag), len(t.data), what="UDP tag") + bytes(t.data)
+            for t in self.tags
+        )
         return head + tags
 
     @classmethod
@@ -151,15 +149,6 @@ class UdpPacket:
         return cls(service, AmsNetId.from_bytes(netid), tuple(tags), port, invoke_id)
 
 
-def _u32(value: int) -> bytes:
-    try:
-        return struct.pack("<I", value)
-    except struct.error as error:
-        raise AdsCodecError(
-            f"{value} does not fit in u32", AdsReturnCode.DEVICE_INVALID_DATA
-        ) from error
-
-
 # -- the packets pyads sends and expects ------------------------------------
 
 
@@ -177,13 +166,7 @@ def discover_reply(
     """A discovery reply: the target's NetId (all pyads reads), its host name
     and its TwinCAT version as tags."""
     major, minor, build = twincat_version
-    try:
-        version = struct.pack("<BBH", major, minor, build)
-    except struct.error as error:
-        raise AdsCodecError(
-            f"TwinCAT version {twincat_version} out of range",
-            AdsReturnCode.DEVICE_INVALID_DATA,
-        ) from error
+    version = pack("<BBH", major, minor, build, what="TwinCAT version")
     return UdpPacket(
         UdpService.DISCOVER | UDP_RESPONSE_FLAG,
         netid,
@@ -229,6 +212,6 @@ def add_route_reply(
     return UdpPacket(
         UdpService.ADD_ROUTE | UDP_RESPONSE_FLAG,
         netid,
-        (UdpTagValue(UdpTag.STATUS, _u32(result)),),
+        (UdpTagValue(UdpTag.STATUS, pack("<I", result, what="add-route result")),),
         invoke_id=invoke_id,
     )

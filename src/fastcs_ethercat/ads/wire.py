@@ -109,6 +109,30 @@ class ByteReader:
             )
 
 
+def pack(layout: str | struct.Struct, *values: object, what: str = "field") -> bytes:
+    """`struct.pack` that reports a value out of range as a codec error."""
+    try:
+        if isinstance(layout, struct.Struct):
+            return layout.pack(*values)
+        return struct.pack(layout, *values)
+    except struct.error as error:
+        raise AdsCodecError(
+            f"{what} out of range: {error}", AdsReturnCode.DEVICE_INVALID_DATA
+        ) from error
+
+
+def exactly(
+    raw: bytes | bytearray | memoryview,
+    size: int,
+    what: str,
+    code: AdsReturnCode = AdsReturnCode.DEVICE_INVALID_SIZE,
+) -> ByteReader:
+    """A reader over `raw`, which must be `size` bytes long."""
+    if len(raw) != size:
+        raise AdsCodecError(f"{what} is {size} bytes, got {len(raw)}", code)
+    return ByteReader(raw, what)
+
+
 def check_u32(value: int, what: str) -> int:
     """Reject values that do not fit an unsigned 32-bit field."""
     if not 0 <= value <= 0xFFFF_FFFF:
