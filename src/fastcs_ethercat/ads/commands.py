@@ -22,7 +22,13 @@ from fastcs_ethercat.ads.constants import (
 )
 from fastcs_ethercat.ads.errors import AdsCodecError
 from fastcs_ethercat.ads.frames import AmsPacket
-from fastcs_ethercat.ads.wire import ByteReader, decode_c_string, encode_text, pack
+from fastcs_ethercat.ads.wire import (
+    ByteReader,
+    FixedRecord,
+    decode_c_string,
+    encode_text,
+    pack,
+)
 
 DEVICE_NAME_SIZE: Final = 16
 NOTIFICATION_RESERVED_SIZE: Final = 16
@@ -88,7 +94,7 @@ class _Payload:
         raise NotImplementedError
 
     @classmethod
-    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
+    def decode(cls, raw: bytes | bytearray | memoryview) -> Self:
         raise NotImplementedError
 
 
@@ -105,26 +111,15 @@ class AdsResponse(_Payload):
     result: int
 
 
-class _Fixed(_Payload):
-    """A payload of fixed-size fields: the dataclass fields in order, packed
-    as `layout`, then `reserved` zero bytes."""
-
-    layout: ClassVar[struct.Struct]
-    reserved: ClassVar[int] = 0
-
-    def encode(self) -> bytes:
-        values = [getattr(self, f.name) for f in fields(cast(Any, self))]
-        return pack(self.layout.format, *values) + bytes(self.reserved)
+class _Fixed(FixedRecord, _Payload):
+    """A payload of fixed-size fields (a response may be its result alone)."""
 
     @classmethod
-    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
-        reader = ByteReader(payload, cls.__name__)
+    def decode(cls, raw: bytes | bytearray | memoryview) -> Self:
+        reader = ByteReader(raw, cls.__name__)
         if (failed := _result_only(cls, reader)) is not None:
             return failed
-        values = cls.layout.unpack(reader.take(cls.layout.size))
-        reader.take(cls.reserved)
-        reader.expect_end()
-        return cls(*values)
+        return cls.from_reader(reader)
 
 
 class _Sized(_Payload):
@@ -138,8 +133,8 @@ class _Sized(_Payload):
         return pack(self.layout.format, *head, len(data)) + bytes(data)
 
     @classmethod
-    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
-        reader = ByteReader(payload, cls.__name__)
+    def decode(cls, raw: bytes | bytearray | memoryview) -> Self:
+        reader = ByteReader(raw, cls.__name__)
         if (failed := _result_only(cls, reader)) is not None:
             return failed
         *head, length = cls.layout.unpack(reader.take(cls.layout.size))
@@ -215,8 +210,8 @@ class ReadDeviceInfoResponse(AdsResponse):
         )
 
     @classmethod
-    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
-        reader = ByteReader(payload, "ReadDeviceInfo response")
+    def decode(cls, raw: bytes | bytearray | memoryview) -> Self:
+        reader = ByteReader(raw, "ReadDeviceInfo response")
         if (failed := _result_only(cls, reader)) is not None:
             return failed
         result = reader.u32()
@@ -390,8 +385,8 @@ class DeviceNotification(AdsRequest):
         return pack("<I", len(body)) + body
 
     @classmethod
-    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
-        reader = ByteReader(payload, "DeviceNotification")
+    def decode(cls, raw: bytes | bytearray | memoryview) -> Self:
+        reader = ByteReader(raw, "DeviceNotification")
         length = reader.u32()
         if length != reader.remaining:
             raise AdsCodecError(

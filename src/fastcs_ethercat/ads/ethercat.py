@@ -13,6 +13,7 @@ one u32 per slave, its ports added).
 
 from __future__ import annotations
 
+import struct
 from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import IntEnum, IntFlag
@@ -23,6 +24,7 @@ from fastcs_ethercat.ads.errors import AdsCodecError
 from fastcs_ethercat.ads.netid import AmsNetId
 from fastcs_ethercat.ads.wire import (
     ByteReader,
+    FixedRecord,
     decode_c_string,
     encode_text,
     exactly,
@@ -159,9 +161,10 @@ def decode_slave_addresses(raw: bytes | bytearray | memoryview) -> tuple[int, ..
 
 
 @dataclass(frozen=True, slots=True)
-class SlaveState:
+class SlaveState(FixedRecord):
     """A slave's raw state byte and link-state byte."""
 
+    layout = struct.Struct("<BB")
     state: int
     link: int = 0
 
@@ -190,14 +193,6 @@ class SlaveState:
     def link_state(self) -> LinkState:
         return LinkState(self.link)
 
-    def encode(self) -> bytes:
-        return pack("<BB", self.state, self.link)
-
-    @classmethod
-    def decode(cls, raw: bytes | bytearray | memoryview) -> Self:
-        reader = exactly(raw, 2, "slave state")
-        return cls(reader.u8(), reader.u8())
-
 
 def encode_slave_states(states: Sequence[SlaveState]) -> bytes:
     """Group 0x09 offset 0: one (state, link) pair per slave, in chain order."""
@@ -214,75 +209,41 @@ def decode_slave_states(raw: bytes | bytearray | memoryview) -> tuple[SlaveState
 
 
 @dataclass(frozen=True, slots=True)
-class SlaveIdentity:
+class SlaveIdentity(FixedRecord):
     """CANopen identity (object 0x1018) of a slave: 4 x u32."""
 
+    layout = struct.Struct("<4I")
     vendor_id: int
     product_code: int
     revision: int
     serial_number: int = 0
 
-    def encode(self) -> bytes:
-        return pack(
-            "<IIII",
-            self.vendor_id,
-            self.product_code,
-            self.revision,
-            self.serial_number,
-        )
-
-    @classmethod
-    def decode(cls, raw: bytes | bytearray | memoryview) -> Self:
-        reader = exactly(raw, 16, "slave identity")
-        return cls(reader.u32(), reader.u32(), reader.u32(), reader.u32())
-
 
 @dataclass(frozen=True, slots=True)
-class FrameCounters:
+class FrameCounters(FixedRecord):
     """Group 0x0C: five u32 counters of the master's frames.
 
     Field meanings follow catio's reading (a time base, then cyclic and
     acyclic frames sent and lost) and are unconfirmed.
     """
 
+    layout = struct.Struct("<5I")
     time: int = 0
     cyclic_sent: int = 0
     cyclic_lost: int = 0
     acyclic_sent: int = 0
     acyclic_lost: int = 0
 
-    def encode(self) -> bytes:
-        return pack(
-            "<5I",
-            self.time,
-            self.cyclic_sent,
-            self.cyclic_lost,
-            self.acyclic_sent,
-            self.acyclic_lost,
-        )
-
-    @classmethod
-    def decode(cls, raw: bytes | bytearray | memoryview) -> Self:
-        reader = exactly(raw, 20, "frame counters")
-        return cls(*(reader.u32() for _ in range(5)))
-
 
 @dataclass(frozen=True, slots=True)
-class CrcCounters:
+class CrcCounters(FixedRecord):
     """Group 0x12, offset = slave address: CRC error counters per port."""
 
+    layout = struct.Struct("<4I")
     port_a: int = 0
     port_b: int = 0
     port_c: int = 0
     port_d: int = 0
-
-    def encode(self) -> bytes:
-        return pack("<4I", self.port_a, self.port_b, self.port_c, self.port_d)
-
-    @classmethod
-    def decode(cls, raw: bytes | bytearray | memoryview) -> Self:
-        reader = exactly(raw, 16, "CRC counters")
-        return cls(*(reader.u32() for _ in range(4)))
 
     @property
     def total(self) -> int:

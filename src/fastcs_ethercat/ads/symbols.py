@@ -19,6 +19,7 @@ from fastcs_ethercat.ads.constants import AdsDataType, AdsReturnCode
 from fastcs_ethercat.ads.errors import AdsCodecError
 from fastcs_ethercat.ads.wire import (
     ByteReader,
+    FixedRecord,
     decode_text,
     decode_whole,
     encode_text,
@@ -35,8 +36,6 @@ real TwinCAT 3 entry of 68 bytes + a 16-byte type GUID with entry length 88
 (84 rounded up to 8). Readers rely only on the entry length, as pyads does."""
 
 _HEADER: Final = struct.Struct("<IIIIIIHHH")
-_UPLOAD_INFO: Final = struct.Struct("<II")
-_UPLOAD_INFO_2: Final = struct.Struct("<IIIIII")
 
 
 def _padded(length: int, alignment: int) -> int:
@@ -163,27 +162,19 @@ def encode_symbol_table(
 
 
 @dataclass(frozen=True, slots=True)
-class SymbolUploadInfo:
+class SymbolUploadInfo(FixedRecord):
     """0xF00C answer: symbol count and symbol table length (8 bytes)."""
 
+    layout = struct.Struct("<II")
     symbol_count: int
     symbol_table_size: int
 
-    def encode(self) -> bytes:
-        return _UPLOAD_INFO.pack(self.symbol_count, self.symbol_table_size)
-
-    @classmethod
-    def decode(cls, raw: bytes | bytearray | memoryview) -> Self:
-        reader = ByteReader(raw, "symbol upload info")
-        info = cls(reader.u32(), reader.u32())
-        reader.expect_end()
-        return info
-
 
 @dataclass(frozen=True, slots=True)
-class SymbolUploadInfo2:
+class SymbolUploadInfo2(FixedRecord):
     """0xF00F answer: six u32 (24 bytes) describing both upload tables."""
 
+    layout = struct.Struct("<6I")
     symbol_count: int
     symbol_table_size: int
     data_type_count: int = 0
@@ -191,23 +182,11 @@ class SymbolUploadInfo2:
     max_dynamic_symbols: int = 0
     used_dynamic_symbols: int = 0
 
-    def encode(self) -> bytes:
-        return pack(
-            _UPLOAD_INFO_2,
-            self.symbol_count,
-            self.symbol_table_size,
-            self.data_type_count,
-            self.data_type_table_size,
-            self.max_dynamic_symbols,
-            self.used_dynamic_symbols,
-            what="upload info field",
-        )
-
     @classmethod
     def decode(cls, raw: bytes | bytearray | memoryview) -> Self:
         """Decode 24 bytes; a longer buffer (pyads reads 1024) is accepted."""
-        reader = ByteReader(raw, "symbol upload info 2")
-        return cls(*(reader.u32() for _ in range(6)))
+        first = ByteReader(raw, cls.__name__).take(cls.layout.size)
+        return cls.from_reader(ByteReader(first, cls.__name__))
 
 
 def encode_symbol_name(name: str) -> bytes:

@@ -9,8 +9,9 @@ from __future__ import annotations
 
 import struct
 from collections.abc import Callable, Iterator
+from dataclasses import fields
 from enum import IntEnum
-from typing import Final, TypeVar
+from typing import Any, ClassVar, Final, Self, TypeVar, cast
 
 from fastcs_ethercat.ads.constants import AdsReturnCode
 from fastcs_ethercat.ads.errors import AdsCodecError
@@ -203,3 +204,30 @@ def enum_or_int(kind: type[_E], value: int) -> _E | int:
         return kind(value)
     except ValueError:
         return value
+
+
+class FixedRecord:
+    """Mixin for a dataclass whose fields, in order, are packed as `layout`
+    (then `reserved` zero bytes): encode, and decode exactly that many bytes."""
+
+    __slots__ = ()
+    layout: ClassVar[struct.Struct]
+    reserved: ClassVar[int] = 0
+
+    def encode(self) -> bytes:
+        values = [getattr(self, f.name) for f in fields(cast(Any, self))]
+        what = f"{type(self).__name__} field"
+        return pack(self.layout, *values, what=what) + bytes(self.reserved)
+
+    @classmethod
+    def decode(cls, raw: bytes | bytearray | memoryview) -> Self:
+        reader = exactly(raw, cls.layout.size + cls.reserved, cls.__name__)
+        return cls.from_reader(reader)
+
+    @classmethod
+    def from_reader(cls, reader: ByteReader) -> Self:
+        """The record at the reader's position; the rest must be `reserved`."""
+        values = cls.layout.unpack(reader.take(cls.layout.size))
+        reader.take(cls.reserved)
+        reader.expect_end()
+        return cast(Any, cls)(*values)
