@@ -20,10 +20,9 @@ from fastcs_ethercat.ads.constants import AdsDataType, AdsReturnCode, DataTypeFl
 from fastcs_ethercat.ads.errors import AdsCodecError
 from fastcs_ethercat.ads.wire import (
     ByteReader,
-    decode_whole,
+    TableEntry,
     encode_text,
     enum_or_int,
-    iter_entries,
     pack,
     read_c_string,
 )
@@ -51,7 +50,7 @@ class ArrayDimension:
 
 
 @dataclass(frozen=True, slots=True)
-class AdsDataTypeEntry:
+class AdsDataTypeEntry(TableEntry):
     """A data type (top level) or a member of one (sub-item).
 
     For a top-level entry `name` is the type's name and `type_name` its base
@@ -117,11 +116,6 @@ class AdsDataTypeEntry:
             what=f"data type {self.name!r} field",
         )
         return (header + body).ljust(length, b"\0")
-
-    @classmethod
-    def decode(cls, raw: bytes | bytearray | memoryview) -> Self:
-        """Decode one entry that fills `raw` exactly."""
-        return decode_whole(raw, cls.decode_at)
 
     @classmethod
     def decode_at(
@@ -203,17 +197,10 @@ class AdsDataTypeEntry:
 _MAX_DEPTH: Final = 32
 
 
-def decode_data_type_table(
-    table: bytes | bytearray | memoryview, count: int | None = None
-) -> list[AdsDataTypeEntry]:
-    """Every entry of a 0xF00E table by its entry length (`count` of them)."""
-    return list(iter_entries(table, AdsDataTypeEntry.decode_at, count))
-
-
-def encode_data_type_table(
-    entries: Sequence[AdsDataTypeEntry], alignment: int = DATA_TYPE_ENTRY_ALIGNMENT
-) -> bytes:
-    return b"".join(entry.encode(alignment) for entry in entries)
+decode_data_type_table = AdsDataTypeEntry.decode_table
+"""Every entry of a 0xF00E table (`count` of them, from 0xF00F)."""
+encode_data_type_table = AdsDataTypeEntry.encode_table
+"""Entries back to back, as a 0xF00E read returns them."""
 
 
 # -- layouts ----------------------------------------------------------------

@@ -20,11 +20,10 @@ from fastcs_ethercat.ads.errors import AdsCodecError
 from fastcs_ethercat.ads.wire import (
     ByteReader,
     FixedRecord,
+    TableEntry,
     decode_text,
-    decode_whole,
     encode_text,
     enum_or_int,
-    iter_entries,
     pack,
     read_c_string,
 )
@@ -43,7 +42,7 @@ def _padded(length: int, alignment: int) -> int:
 
 
 @dataclass(frozen=True, slots=True)
-class AdsSymbolEntry:
+class AdsSymbolEntry(TableEntry):
     """One symbol: where it lives (group, offset), its size and its type."""
 
     name: str
@@ -81,11 +80,6 @@ class AdsSymbolEntry:
             what=f"symbol {self.name!r} field",
         )
         return (header + body).ljust(length, b"\0")
-
-    @classmethod
-    def decode(cls, raw: bytes | bytearray | memoryview) -> Self:
-        """Decode one entry that fills `raw` exactly (e.g. a 0xF009 answer)."""
-        return decode_whole(raw, cls.decode_at)
 
     @classmethod
     def decode_at(
@@ -146,19 +140,10 @@ def decode_symbol_entry(
     return AdsSymbolEntry.decode_at(raw, offset)
 
 
-def decode_symbol_table(
-    table: bytes | bytearray | memoryview, count: int | None = None
-) -> list[AdsSymbolEntry]:
-    """Every entry of an upload table by its entry length; with `count` (from
-    0xF00F) only that many, as pyads does."""
-    return list(iter_entries(table, AdsSymbolEntry.decode_at, count))
-
-
-def encode_symbol_table(
-    entries: list[AdsSymbolEntry], alignment: int = SYMBOL_ENTRY_ALIGNMENT
-) -> bytes:
-    """Entries back to back, as a 0xF00B read returns them."""
-    return b"".join(entry.encode(alignment) for entry in entries)
+decode_symbol_table = AdsSymbolEntry.decode_table
+"""Every entry of a 0xF00B table (`count` of them, from 0xF00F)."""
+encode_symbol_table = AdsSymbolEntry.encode_table
+"""Entries back to back, as a 0xF00B read returns them."""
 
 
 @dataclass(frozen=True, slots=True)

@@ -8,7 +8,7 @@ built on it keeps the codec's promise of a single exception type.
 from __future__ import annotations
 
 import struct
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import fields
 from enum import IntEnum
 from typing import Any, ClassVar, Final, Self, TypeVar, cast
@@ -231,3 +231,39 @@ class FixedRecord:
         reader.take(cls.reserved)
         reader.expect_end()
         return cast(Any, cls)(*values)
+
+
+class TableEntry:
+    """Mixin for entries that tables hold back to back, each starting with
+    its own length (symbol and data-type entries): whole tables and single
+    entries from `decode_at`, tables from `encode`."""
+
+    __slots__ = ()
+
+    @classmethod
+    def decode_at(
+        cls, raw: bytes | bytearray | memoryview, offset: int = 0
+    ) -> tuple[Self, int]:
+        """The entry at `offset` and its length."""
+        raise NotImplementedError
+
+    def encode(self, alignment: int) -> bytes:
+        raise NotImplementedError
+
+    @classmethod
+    def decode(cls, raw: bytes | bytearray | memoryview) -> Self:
+        """The one entry that fills `raw` exactly (e.g. a 0xF009 answer)."""
+        return decode_whole(raw, cls.decode_at)
+
+    @classmethod
+    def decode_table(
+        cls, table: bytes | bytearray | memoryview, count: int | None = None
+    ) -> list[Self]:
+        """Every entry by its length; with `count` (from 0xF00F) only that
+        many, as pyads reads them."""
+        return list(iter_entries(table, cls.decode_at, count))
+
+    @staticmethod
+    def encode_table(entries: Sequence[TableEntry], alignment: int = 8) -> bytes:
+        """Entries back to back, each padded to `alignment`."""
+        return b"".join(entry.encode(alignment) for entry in entries)
