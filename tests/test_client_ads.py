@@ -11,7 +11,6 @@ ends do not just agree with each other.
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import logging
 import struct
 import threading
@@ -253,7 +252,6 @@ class ServerThread:
         self.udp = UdpResponder(
             NET_ID, host_name="fake-plc", credentials=(ROUTE_USER, ROUTE_PASSWORD)
         )
-        self.udp_host = ""
         self._loop = asyncio.new_event_loop()
         self._thread = threading.Thread(target=self._loop.run_forever, daemon=True)
         self._ticker: asyncio.Task[None] | None = None
@@ -270,13 +268,7 @@ class ServerThread:
 
     async def _start(self) -> None:
         await self.server.start("127.0.0.1", 0)
-        # pyads only talks to UDP 48899; if 127.0.0.1:48899 is taken by someone
-        # else's test, another loopback address is as good a "PLC".
-        for host in ("127.0.0.1", "127.0.0.2", "127.0.0.3", "127.0.0.4"):
-            with contextlib.suppress(OSError):
-                await self.udp.start(host, 48899)
-                self.udp_host = host
-                break
+        await self.udp.start("127.0.0.1", 0)
         self._ticker = asyncio.get_running_loop().create_task(self._tick())
 
     async def _tick(self) -> None:
@@ -301,7 +293,6 @@ class ServerThread:
 def server() -> Iterator[ServerThread]:
     thread = ServerThread(ClientTestTarget())
     thread.start()
-    assert thread.udp_host, "no loopback address had UDP 48899 free"
     yield thread
     thread.stop()
 
@@ -426,7 +417,7 @@ async def test_timeout_is_typed_and_the_loop_keeps_running(
     assert timed_out.value.code == AdsReturnCode.CLIENT_SYNC_TIMEOUT
     assert 0.3 < waited < 1.0
     assert len(gaps) > 20
-    assert max(gaps) < 0.2, "the event loop was blocked while pyads waited"
+    assert max(gaps) < 0.2, "the event loop was blocked while the request waited"
 
 
 async def test_sum_read_splits_at_500_and_keeps_item_errors(
@@ -584,7 +575,7 @@ async def test_the_next_request_reconnects_after_the_connection_dropped(
 
 
 async def test_discover_net_id_over_udp(server: ServerThread) -> None:
-    assert await discover_net_id(server.udp_host) == NET_ID
+    assert await discover_net_id("127.0.0.1", port=server.udp.port) == NET_ID
 
 
 async def test_route_password_from_env_reaches_the_target_and_no_log(
@@ -598,7 +589,8 @@ async def test_route_password_from_env_reaches_the_target_and_no_log(
     route = RouteConfig(password_env="FASTCS_ETHERCAT_TEST_ROUTE_PASSWORD")
 
     await add_route(
-        server.udp_host,
+        "127.0.0.1",
+        port=server.udp.port,
         local_net_id="192.0.2.99.1.1",
         host_address="127.0.0.1",
         user=route.user,
@@ -607,7 +599,8 @@ async def test_route_password_from_env_reaches_the_target_and_no_log(
     )
     with pytest.raises(AdsRouteError) as refused:
         await add_route(
-            server.udp_host,
+            "127.0.0.1",
+            port=server.udp.port,
             local_net_id="192.0.2.99.1.1",
             host_address="127.0.0.1",
             user=route.user,
