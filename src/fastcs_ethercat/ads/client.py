@@ -755,9 +755,11 @@ class AdsClient:
         on_answer: Callable[[Answered], object] | None = None,
         by_handle: bool = False,
     ) -> _Response:
-        port = self._port
-        if port is None or self._closed:
+        if self._closed:
             raise self._closed_error(operation)
+        port = self._port
+        if port is None:  # not opened: the first request takes the port
+            port = self._port = self._connection.open_port(self)
         answer = await self._connection.request(
             self.address,
             port,

@@ -214,7 +214,7 @@ class AmsTcpConnection:
         self._ports[port] = owner
         return port
 
-    def close_port(self, port: int, operation: str = "request") -> None:
+    def close_port(self, port: int) -> None:
         """Release `port`; its requests in flight fail as closed."""
         self._ports.pop(port, None)
         for invoke_id, waiter in list(self._waiting.items()):
@@ -304,9 +304,7 @@ class AmsTcpConnection:
 
     async def close(self) -> None:
         """Close the socket; every request in flight fails, none is accepted."""
-        self._closed = True
-        if self._connecting is not None:
-            self._connecting.cancel()
+        self._closed = True  # a connect under way closes what it opens
         transport = self._transport
         self._fail_all(
             lambda waiter: AdsConnectionError(
@@ -362,6 +360,13 @@ class AmsTcpConnection:
                 AdsReturnCode.PORT_NOT_CONNECTED,
                 error.strerror or str(error),
             ) from None
+        if self._closed:
+            transport.close()
+            raise self._cannot_reach(
+                AdsConnectionError,
+                AdsReturnCode.CLIENT_PORT_NOT_OPEN,
+                "the connection was closed",
+            )
         sock = transport.get_extra_info("socket")
         if sock is not None:
             sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)

@@ -128,15 +128,19 @@ HANDLE_ERRORS: Final = frozenset(
     }
 )
 """What a request by handle answers when the handle is unknown or outdated."""
-_NOT_CONNECTED: Final = frozenset(
-    {AdsReturnCode.CLIENT_PORT_NOT_OPEN, AdsReturnCode.CLIENT_NO_AMS_ADDR}
+_NO_ANSWER: Final = frozenset(
+    {
+        AdsReturnCode.CLIENT_PORT_NOT_OPEN,
+        AdsReturnCode.CLIENT_NO_AMS_ADDR,
+        AdsReturnCode.CLIENT_SYNC_RES_INVALID,  # garbage is no answer either
+    }
 )
 
 
 def unreachable(code: int) -> bool:
     """The code says the target did not answer (timeout, socket, routing or
-    port), rather than that it answered with an error."""
-    if code in _TIMEOUTS or code in SOCKET_ERRORS or code in _NOT_CONNECTED:
+    port, or a malformed answer), rather than that it answered with an error."""
+    if code in _TIMEOUTS or code in SOCKET_ERRORS or code in _NO_ANSWER:
         return True
     return code < AdsReturnCode.DEVICE_ERROR and code not in _SYMBOL_ERRORS
 
