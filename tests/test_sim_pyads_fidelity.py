@@ -23,8 +23,13 @@ import yaml
 from fastcs_ethercat.ads.client import AdsClient, AdsHandleInvalidError
 from fastcs_ethercat.ads.constants import AdsReturnCode, EtherCatMasterGroup
 from fastcs_ethercat.ads.ethercat import decode_crc_totals
+from fastcs_ethercat.ioc.clients import ClientPool
+from fastcs_ethercat.ioc.config import IocConfig
+from fastcs_ethercat.ioc.discovery import discover
+from fastcs_ethercat.ioc.plan import SystemPlan
 from fastcs_ethercat.sim.runner import SimulatorThread
 from fastcs_ethercat.sim.target import SimTarget
+from fastcs_ethercat.terminals.loader import load_terminals
 from tests.conftest import REPO_ROOT, TERMINALS_DIR
 
 NET_ID: Final = "192.0.2.63.1.1"
@@ -241,13 +246,22 @@ def test_the_ioc_client_on_an_older_twincat(tmp_path: Path) -> None:
         finally:
             pyads_device.close()
 
-        async def upload() -> tuple[Any, int | None]:
+        async def upload() -> tuple[Any, int | None, SystemPlan]:
             async with AdsClient(
                 "127.0.0.1", OLD_NET_ID, DEVICE_PORT, tcp_port=port
             ) as c:
-                return await c.upload_symbols(), await c.read_symbol_version()
+                tables, version = (
+                    await c.upload_symbols(),
+                    await c.read_symbol_version(),
+                )
+            config = IocConfig(
+                prefix="OLD", target=f"127.0.0.1:{port}", ams_net_id=OLD_NET_ID
+            )
+            async with ClientPool.for_target(config.target) as pool:
+                plan = await discover(pool, load_terminals([TERMINALS_DIR]), config)
+            return tables, version, plan
 
-        tables, version = asyncio.run(upload())
+        tables, version, plan = asyncio.run(upload())
 
     assert no_info_2.value.err_code == AdsReturnCode.DEVICE_SERVICE_NOT_SUPPORTED
     assert version is None
@@ -255,3 +269,6 @@ def test_the_ioc_client_on_an_older_twincat(tmp_path: Path) -> None:
     assert tables.info.symbol_table_size == info[1]
     assert tables.data_types  # read as far as the table goes
     assert {s.name for s in tables.symbols} >= {COMPACT, STANDARD}
+    assert plan.symbol_version == -1  # discovery does not need 0xF008
+    served = [p for t in plan.masters[0].terminals for p in t.points]
+    assert len(plan.masters[0].terminals) == 24 and len(served) > 100
