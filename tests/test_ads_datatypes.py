@@ -17,8 +17,8 @@ from fastcs_ethercat.ads.datatypes import (
     MemberSpec,
     decode_data_type_table,
     encode_data_type_table,
-    flatten_members,
     layout_structure,
+    walk_members,
 )
 from fastcs_ethercat.ads.errors import AdsCodecError
 
@@ -141,7 +141,7 @@ def test_packed_structure_layout_of_an_analog_input() -> None:
         ("Status", 0),
         ("Value", 2),
     ]
-    assert flatten_members(AI_TYPE) == [
+    assert walk_members(AI_TYPE) == [
         MemberLayout("Status", "UINT", AdsDataType.UINT16, 0, 2),
         MemberLayout("Value", "INT", AdsDataType.INT16, 2, 2),
     ]
@@ -169,7 +169,7 @@ def test_nested_members_resolve_through_the_type_table() -> None:
             MemberSpec("AI", AI_TYPE.name, AdsDataType.BIGTYPE, 4),
         ],
     )
-    members = flatten_members(outer, {AI_TYPE.name: AI_TYPE})
+    members = walk_members(outer, {AI_TYPE.name: AI_TYPE})
     assert [(m.path, m.offset) for m in members] == [
         ("Head", 0),
         ("AI.Status", 1),

@@ -28,6 +28,7 @@ from fastcs_ethercat.ads.sums import (
     SumDeleteNotificationsRequest,
     SumDeleteNotificationsResponse,
     SumReadItem,
+    SumReadLayout,
     SumReadRequest,
     SumReadResponse,
     SumReadWriteItem,
@@ -37,11 +38,8 @@ from fastcs_ethercat.ads.sums import (
     SumWriteRequest,
     SumWriteResponse,
     chunked,
-    sum_read_data_offsets,
-    sum_read_results,
 )
 from fastcs_ethercat.ads.symbols import AdsSymbolEntry
-from fastcs_ethercat.ads.values import sum_read_dtype
 
 u32 = st.integers(0, 0xFFFF_FFFF)
 blobs = st.binary(max_size=12)
@@ -61,14 +59,18 @@ def test_sum_read_layout_by_hand() -> None:
     assert SumReadResponse.decode(raw, [4, 1]) == response
 
 
-def test_sum_read_numpy_views() -> None:
+def test_sum_read_layout_views_a_whole_answer() -> None:
     raw = struct.pack("<II", 0, 0x710) + struct.pack("<hH", -5, 7) + b"\x01"
-    assert sum_read_results(raw, 2).tolist() == [0, 0x710]
-    assert sum_read_data_offsets([4, 1]).tolist() == [8, 12]
-    view = np.frombuffer(raw, dtype=sum_read_dtype([("ai", "<i4"), ("bit", "u1")]))[0]
-    assert view["results"].tolist() == [0, 0x710]
-    assert view["bit"] == 1
-    assert sum_read_data_offsets([]).tolist() == []
+    layout = SumReadLayout([4, 1])
+    view = np.frombuffer(raw, dtype=layout.dtype([("ai", "<i2", 8), ("bit", "u1", 12)]))
+    assert layout.data_offsets.tolist() == [8, 12]
+    assert layout.size == len(raw)
+    assert view[0]["results"].tolist() == [0, 0x710]
+    assert (view[0]["ai"], view[0]["bit"]) == (-5, 1)
+    assert layout.split(raw) == ((0, 0x710), (raw[8:12], b"\x01"))
+    assert SumReadLayout([]).data_offsets.tolist() == []
+    with pytest.raises(AdsCodecError):
+        layout.split(raw[:-1])
 
 
 @given(st.lists(st.tuples(u32, u32, st.binary(max_size=8), u32), max_size=6))

@@ -23,7 +23,6 @@ from fastcs_ethercat.ads.symbols import (
     decode_symbol_table,
     encode_symbol_name,
     encode_symbol_table,
-    iter_symbol_table,
 )
 
 ANALOG = AdsSymbolEntry(
@@ -113,7 +112,7 @@ def test_table_round_trip(table: list[AdsSymbolEntry]) -> None:
     raw = encode_symbol_table(table)
     names = [e.name for e in decode_symbol_table(raw)]
     assert names == [e.name for e in table]
-    assert [e.name for e in iter_symbol_table(raw, len(table))] == names
+    assert [e.name for e in decode_symbol_table(raw, len(table))] == names
 
 
 def test_pyads_ctypes_struct_reads_our_entry() -> None:

@@ -1,144 +1,110 @@
-"""An asyncio facade over pyads: one `pyads.Connection`, one worker thread.
+"""The asyncio ADS client: one target AMS address over a shared connection.
 
-pyads (Beckhoff's AdsLib underneath) blocks and is not thread-safe per
-connection, so every pyads call of a connection runs on that connection's own
-single-thread executor and the event loop only awaits it. Notifications arrive
-on AdsLib's receive thread; their bytes are copied there and handed to the
-loop with `call_soon_threadsafe`. Raw bytes that pyads returns (symbol and
-data-type tables, sum reads) are decoded by the `ads` codec, the same code the
-simulator encodes them with.
+`AdsClient(host, net_id, port)` talks to one AMS address (a TwinCAT device
+port, the I/O server, an EtherCAT master, a slave's mailbox) through an
+`AmsTcpConnection` to the router at `host:tcp_port`: its own, or one shared
+with other clients (`connection=`), which is how the IOC keeps one TCP
+connection per PLC. Requests and answers are encoded and decoded by the
+project's own codec, the same that the simulator speaks, and every answer is
+checked in pure Python before it is used (`ads.session`): no byte from the
+network reaches native code, so no byte can crash the process.
 
-pyads' own failures become `AdsError` subclasses carrying the ADS return code.
-
-Process-wide AdsLib facts this module relies on (Linux): the router lives in
-the process; `Connection.open()` adds a route NetId -> `host[:port]` and a
-second route to the same NetId through another address fails with 0x506
-(ROUTERERR_PORTALREADYINUSE); the local NetId is one per process
-(`set_local_net_id`). UDP discovery and add-route (pyads, port 48899) are not
-tied to a connection and run in the default executor.
+Failures are `AdsError` subclasses carrying the ADS return code
+(`ads.errors`); a request never blocks the event loop.
 """
 
 from __future__ import annotations
 
 import asyncio
-import ctypes
 import logging
-import socket
 from collections.abc import Callable, Sequence
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from datetime import datetime
-from typing import Any, Final, TypeVar, cast
+from typing import Any, Final, TypeVar
 
-import pyads
-from pyads.constants import ADSIGRP_SUMUP_READ
-from pyads.pyads_ex import adsGetNetIdForPLC
-from pyads.structs import SAdsNotificationHeader, SAdsSumRequest
-from pydantic import SecretStr
-
-from fastcs_ethercat.ads.commands import filetime_to_datetime
+from fastcs_ethercat.ads.commands import (
+    AddDeviceNotificationRequest,
+    AddDeviceNotificationResponse,
+    AdsRequest,
+    AdsResponse,
+    DeleteDeviceNotificationRequest,
+    NotificationStamp,
+    ReadDeviceInfoRequest,
+    ReadDeviceInfoResponse,
+    ReadRequest,
+    ReadResponse,
+    ReadStateRequest,
+    ReadStateResponse,
+    ReadWriteRequest,
+    ReadWriteResponse,
+    WriteRequest,
+    filetime_to_datetime,
+    notification_time_from_ms,
+)
+from fastcs_ethercat.ads.connection import AmsTcpConnection, set_local_net_id
 from fastcs_ethercat.ads.constants import (
     ADS_TCP_PORT,
-    ADS_UDP_PORT,
     MAX_SUM_SUB_COMMANDS,
     AdsReturnCode,
     AdsState,
     IndexGroup,
     TransmissionMode,
-    describe_return_code,
 )
 from fastcs_ethercat.ads.datatypes import AdsDataTypeEntry, decode_data_type_table
-from fastcs_ethercat.ads.errors import AdsCodecError
-from fastcs_ethercat.ads.netid import AmsNetId
-from fastcs_ethercat.ads.sums import SumReadItem, SumReadResponse, chunked
+from fastcs_ethercat.ads.errors import (
+    AdsCodecError,
+    AdsConnectionError,
+    AdsConnectionLostError,
+    AdsConnectionRefusedError,
+    AdsConnectTimeoutError,
+    AdsError,
+    AdsHandleInvalidError,
+    AdsHostUnreachableError,
+    AdsProtocolError,
+    AdsRouteError,
+    AdsSymbolError,
+    AdsTimeoutError,
+    AdsUnknownHostError,
+    ads_error,
+    unreachable,
+)
+from fastcs_ethercat.ads.netid import AmsAddress, AmsNetId
+from fastcs_ethercat.ads.ratelimit import RateLimitedLog
+from fastcs_ethercat.ads.session import Answered
+from fastcs_ethercat.ads.sums import (
+    SumReadItem,
+    SumReadRequest,
+    SumReadResponse,
+    SumReadWriteItem,
+    SumReadWriteRequest,
+    SumReadWriteResponse,
+    SumWriteItem,
+    SumWriteRequest,
+    SumWriteResponse,
+    chunked,
+)
 from fastcs_ethercat.ads.symbols import (
     AdsSymbolEntry,
+    SymbolUploadInfo,
     SymbolUploadInfo2,
     decode_symbol_table,
+    encode_symbol_name,
 )
+from fastcs_ethercat.ads.udp_client import add_route, discover_net_id, local_ip_towards
+from fastcs_ethercat.ads.values import unpack_value
+from fastcs_ethercat.ads.wire import U32, enum_or_int
 
 logger = logging.getLogger(__name__)
 
 _T = TypeVar("_T")
-_UPLOAD_INFO_2_SIZE: Final = 24
-_SYMBOL_ERRORS: Final = frozenset(
-    {
-        AdsReturnCode.DEVICE_SYMBOL_NOT_FOUND,
-        AdsReturnCode.DEVICE_SYMBOL_VERSION_INVALID,
-        AdsReturnCode.DEVICE_SYMBOL_NOT_ACTIVE,
-    }
-)
-_TIMEOUTS: Final = frozenset(
-    {
-        AdsReturnCode.CLIENT_SYNC_TIMEOUT,
-        AdsReturnCode.DEVICE_TIMEOUT,
-        AdsReturnCode.AMS_SYNC_TIMEOUT,
-    }
-)
-_NOT_CONNECTED: Final = frozenset(
-    {
-        AdsReturnCode.CLIENT_PORT_NOT_OPEN,
-        AdsReturnCode.CLIENT_NO_AMS_ADDR,
-    }
-)
-_ROUTER_ERRORS: Final = range(0x500, 0x600)
-"""AdsLib router errors (ROUTERERR_*, e.g. 0x506 port already in use)."""
-
-
-# -- errors -----------------------------------------------------------------
-
-
-class AdsError(Exception):
-    """An ADS request failed; `code` is the ADS return code."""
-
-    def __init__(self, code: int, operation: str, target: str, detail: str = ""):
-        self.code = code
-        self.operation = operation
-        self.target = target
-        text = f"{operation} on {target} failed: {describe_return_code(code)}"
-        super().__init__(f"{text}: {detail}" if detail else text)
-
-
-class AdsTimeoutError(AdsError):
-    """No answer in time (0x745 from the client library, 0x719 from a device)."""
-
-
-class AdsConnectionError(AdsError):
-    """The target cannot be reached: AMS routing, router or port errors."""
-
-
-class AdsSymbolError(AdsError):
-    """A symbol is gone or changed (0x710, 0x711, 0x722): re-resolve symbols."""
-
-
-class AdsProtocolError(AdsError):
-    """The target answered with bytes that break the ADS layout."""
-
-
-class AdsRouteError(AdsError):
-    """The target refused to add our route (wrong user or password)."""
-
-
-def unreachable(code: int) -> bool:
-    """The code says the target did not answer (timeout, routing, router or
-    port), rather than that it answered with an error."""
-    if code in _TIMEOUTS:
-        return True
-    if code in _SYMBOL_ERRORS:
-        return False
-    return code < 0x700 or code in _NOT_CONNECTED or code in _ROUTER_ERRORS
-
-
-def ads_error(code: int, operation: str, target: str, detail: str = "") -> AdsError:
-    """The typed exception for an ADS return code."""
-    kind: type[AdsError] = AdsError
-    if code in _TIMEOUTS:
-        kind = AdsTimeoutError
-    elif code in _SYMBOL_ERRORS:
-        kind = AdsSymbolError
-    elif code < 0x700 or code in _NOT_CONNECTED or code in _ROUTER_ERRORS:
-        kind = AdsConnectionError
-    return kind(code, operation, target, detail)
+DEFAULT_TIMEOUT_MS: Final = 5000
+"""Timeout of a request when none is given (AdsLib's default)."""
+UPLOAD_INFO_2_SIZE: Final = 24
+UPLOAD_INFO_SIZE: Final = 8
+SYMBOL_INFO_SIZE: Final = 1024
+"""Read length of one 0xF009 answer (an entry with a long name and comment)."""
+DATA_TYPE_TABLE_LIMIT: Final = 16 * 1024 * 1024
+"""Read length of a data-type table whose size the target did not tell."""
 
 
 # -- results ----------------------------------------------------------------
@@ -179,7 +145,7 @@ class SymbolTables:
 
 @dataclass(frozen=True)
 class Notification:
-    """One sample of a device notification, copied out of AdsLib's buffer."""
+    """One sample of a device notification."""
 
     handle: int
     timestamp: int
@@ -193,24 +159,31 @@ class Notification:
 
 @dataclass(frozen=True)
 class NotificationHandle:
-    """What `delete_notification` needs: the notification and user handles."""
+    """What `delete_notification` needs: the target's notification handle."""
 
     notification: int
-    user: int | None
+    user: int | None = None
 
 
 NotificationCallback = Callable[[Notification], object]
 """Called on the event loop's thread with each notification sample."""
 
 
+@dataclass(frozen=True, slots=True)
+class _Subscription:
+    callback: NotificationCallback
+    size: int
+
+
+ItemResult = bytes | AdsError
+"""Per item of a sum: its data, or the typed error of that item alone."""
+
+
 # -- the client -------------------------------------------------------------
 
 
 class AdsClient:
-    """One ADS connection to `ams_net_id:ams_port` through `host[:tcp_port]`.
-
-    Every method is a coroutine; pyads runs on this client's one worker thread.
-    """
+    """One ADS target address `ams_net_id:ams_port` behind `host[:tcp_port]`."""
 
     def __init__(
         self,
@@ -220,6 +193,7 @@ class AdsClient:
         *,
         tcp_port: int = ADS_TCP_PORT,
         timeout_ms: int | None = None,
+        connection: AmsTcpConnection | None = None,
     ) -> None:
         netid = (
             ams_net_id
@@ -231,22 +205,31 @@ class AdsClient:
         self.ams_net_id = netid
         self.ams_port = ams_port
         self.timeout_ms = timeout_ms
-        router_address = host if tcp_port == ADS_TCP_PORT else f"{host}:{tcp_port}"
-        self._connection = pyads.Connection(str(netid), ams_port, router_address)
-        self._executor = ThreadPoolExecutor(
-            max_workers=1, thread_name_prefix=f"ads-{netid}:{ams_port}"
-        )
-        self._notifications: set[NotificationHandle] = set()
+        self.address = AmsAddress(netid, ams_port)
+        self._owns_connection = connection is None
+        self._connection = connection or AmsTcpConnection(host, tcp_port)
+        self._port: int | None = None
+        self._subscriptions: dict[int, _Subscription] = {}
         self._closed = False
+        self._log = RateLimitedLog(logger)
 
     @property
     def target(self) -> str:
         """`netid:port via host:tcp_port`, for messages."""
-        return f"{self.ams_net_id}:{self.ams_port} via {self.host}:{self.tcp_port}"
+        return f"{self.address} via {self.host}:{self.tcp_port}"
 
     @property
     def is_open(self) -> bool:
-        return self._connection.is_open
+        return self._port is not None and not self._closed
+
+    @property
+    def connection(self) -> AmsTcpConnection:
+        """The connection this client's requests travel on."""
+        return self._connection
+
+    @property
+    def timeout_s(self) -> float:
+        return (self.timeout_ms or DEFAULT_TIMEOUT_MS) / 1000.0
 
     def __repr__(self) -> str:
         return f"AdsClient({self.target})"
@@ -259,73 +242,65 @@ class AdsClient:
         await self.close()
 
     async def open(self) -> None:
-        """Add the AdsLib route and open a local AMS port (no traffic yet)."""
-
-        def open_connection() -> None:
-            self._connection.open()
-            if self.timeout_ms is not None:
-                self._connection.set_timeout(self.timeout_ms)
-
-        await self._call("open", open_connection)
+        """Take a local AMS port and connect (raises why the target cannot be
+        reached; later requests connect again by themselves after a loss)."""
+        if self._closed:
+            raise self._closed_error("open")
+        if self._port is None:
+            self._port = self._connection.open_port(self)
+        await self._connection.connect()
 
     async def close(self) -> None:
-        """Delete our notifications, close the connection, end the worker."""
+        """Delete our notifications, release our port; requests still in
+        flight fail at once (a stalled target is not waited for)."""
         if self._closed:
             return
         self._closed = True
+        port, self._port = self._port, None
+        if port is not None:
+            handles = list(self._subscriptions)
+            self._subscriptions.clear()
+            if handles and self._connection.connected:
+                await self._delete_quietly(port, handles)
+            self._connection.close_port(port)
+        if self._owns_connection:
+            await self._connection.close()
 
-        def close_connection() -> None:
-            for handle in list(self._notifications):
-                try:
-                    self._connection.del_device_notification(
-                        handle.notification, _user_handle(handle)
-                    )
-                except pyads.ADSError as error:
-                    logger.warning("%s: cannot delete notification: %s", self, error)
-            self._notifications.clear()
-            self._connection.close()
-
-        # Requests still queued behind the running one are skipped (see
-        # `_call`): closing waits for at most that one, never for a queue of
-        # requests to a target that is gone, each until its timeout.
-        loop = asyncio.get_running_loop()
-        try:
-            await loop.run_in_executor(self._executor, close_connection)
-        except pyads.ADSError as error:
-            logger.warning("%s: close: %s", self, error)
-        finally:
-            self._executor.shutdown(wait=False)
+    # -- plain services ------------------------------------------------------
 
     async def read_state(self) -> AdsStatus:
-        ads_state, device_state = await self._call(
-            "read state", lambda: _opened(self._connection.read_state())
+        response = await self._request(
+            "read state", ReadStateRequest(), ReadStateResponse
         )
-        return AdsStatus(_ads_state(ads_state), device_state)
+        return AdsStatus(
+            enum_or_int(AdsState, response.ads_state), response.device_state
+        )
 
     async def read_device_info(self) -> DeviceInfo:
-        name, version = await self._call(
-            "read device info", lambda: _opened(self._connection.read_device_info())
+        response = await self._request(
+            "read device info", ReadDeviceInfoRequest(), ReadDeviceInfoResponse
         )
-        return DeviceInfo(name, version.version, version.revision, version.build)
+        return DeviceInfo(response.name, response.major, response.minor, response.build)
 
-    async def read(self, index_group: int, index_offset: int, size: int) -> bytes:
-        """Exactly `size` bytes (fewer from the target is an AdsProtocolError)."""
-        return await self._call(
-            f"read 0x{index_group:X}:0x{index_offset:X}",
-            lambda: self._read(index_group, index_offset, size),
+    async def read(
+        self, index_group: int, index_offset: int, size: int, *, exact: bool = True
+    ) -> bytes:
+        """`size` bytes; with `exact=False` up to `size` (names, strings, tables
+        whose length is not known in advance)."""
+        operation = f"read 0x{index_group:X}:0x{index_offset:X}"
+        if size == 0:
+            return b""
+        response = await self._request(
+            operation, ReadRequest(index_group, index_offset, size), ReadResponse
         )
+        return self._sized(operation, response.data, size, exact)
 
     async def write(self, index_group: int, index_offset: int, data: bytes) -> None:
-        def write() -> None:
-            array_type = ctypes.c_ubyte * len(data)
-            self._connection.write(
-                index_group,
-                index_offset,
-                array_type.from_buffer_copy(data),
-                array_type if data else None,
-            )
-
-        await self._call(f"write 0x{index_group:X}:0x{index_offset:X}", write)
+        await self._request(
+            f"write 0x{index_group:X}:0x{index_offset:X}",
+            WriteRequest(index_group, index_offset, bytes(data)),
+            AdsResponse,
+        )
 
     async def read_write(
         self,
@@ -336,16 +311,16 @@ class AdsClient:
         *,
         exact: bool = True,
     ) -> bytes:
-        """Write `data`, read back `read_size` bytes.
-
-        With `exact=False` a shorter answer is accepted (pyads does not say how
-        long it was): the bytes past it are zero, so the caller must know the
-        layout's own length fields (a 0xF009 symbol entry, a string).
-        """
-        return await self._call(
-            f"read-write 0x{index_group:X}:0x{index_offset:X}",
-            lambda: self._read_write(index_group, index_offset, read_size, data, exact),
+        """Write `data`, read back `read_size` bytes (up to, with `exact=False`)."""
+        operation = f"read-write 0x{index_group:X}:0x{index_offset:X}"
+        response = await self._request(
+            operation,
+            ReadWriteRequest(index_group, index_offset, read_size, bytes(data)),
+            ReadWriteResponse,
         )
+        return self._sized(operation, response.data, read_size, exact)
+
+    # -- sum commands ----------------------------------------------------------
 
     async def sum_read(
         self, items: Sequence[SumReadItem], chunk_size: int = MAX_SUM_SUB_COMMANDS
@@ -353,15 +328,20 @@ class AdsClient:
         """Read many (group, offset, length) items with 0xF080 sum reads.
 
         Returns one raw answer per request of at most `chunk_size` items
-        (n result u32 then every item's data), for the hot path to view with
-        numpy; all requests of one call run back to back on the worker.
+        (n results u32 then every item's data, `SumReadLayout`), for the hot
+        path to view with numpy; the requests are all in flight at once.
         """
         if not 0 < chunk_size <= MAX_SUM_SUB_COMMANDS:
             raise ValueError(f"chunk size must be 1..{MAX_SUM_SUB_COMMANDS}")
-        chunks = [tuple(chunk) for chunk in chunked(items, chunk_size)]
-        return await self._call(
-            f"sum read of {len(items)} items",
-            lambda: [self._sum_read_chunk(chunk) for chunk in chunks],
+        requests = [SumReadRequest(tuple(c)) for c in chunked(items, chunk_size)]
+        return await _all(
+            self.read_write(
+                IndexGroup.SUMUP_READ,
+                len(request.items),
+                request.read_length,
+                request.encode(),
+            )
+            for request in requests
         )
 
     async def sum_read_items(
@@ -380,44 +360,301 @@ class AdsClient:
             outcomes.extend(zip(response.results, response.data, strict=True))
         return outcomes
 
+    async def sum_read_write(
+        self, items: Sequence[SumReadWriteItem]
+    ) -> list[tuple[int, bytes]]:
+        """0xF082 in requests of at most 500: (result, data) per item."""
+        requests = [SumReadWriteRequest(tuple(c)) for c in chunked(items)]
+        answers = await _all(
+            self.read_write(
+                IndexGroup.SUMUP_READ_WRITE,
+                len(request.items),
+                request.read_length,
+                request.encode(),
+                exact=False,
+            )
+            for request in requests
+        )
+        outcomes: list[tuple[int, bytes]] = []
+        for request, answer in zip(requests, answers, strict=True):
+            response = self._decode(
+                "sum read-write",
+                lambda r=request, a=answer: SumReadWriteResponse.decode(
+                    a, len(r.items)
+                ),
+            )
+            outcomes.extend(zip(response.results, response.data, strict=True))
+        return outcomes
+
+    async def sum_write(self, items: Sequence[SumWriteItem]) -> list[int]:
+        """0xF081 in requests of at most 500: the result of each item.
+
+        A target that refuses sum writes (TwinCAT's EtherCAT device port
+        answers 0x701) gets the items as single writes, all in flight at once.
+        """
+        requests = [SumWriteRequest(tuple(c)) for c in chunked(items)]
+        try:
+            answers = await _all(
+                self.read_write(
+                    IndexGroup.SUMUP_WRITE,
+                    len(request.items),
+                    request.read_length,
+                    request.encode(),
+                )
+                for request in requests
+            )
+        except AdsError as error:
+            if error.code != AdsReturnCode.DEVICE_SERVICE_NOT_SUPPORTED:
+                raise
+            return await self._single_writes(items)
+        results: list[int] = []
+        for request, answer in zip(requests, answers, strict=True):
+            response = self._decode(
+                "sum write",
+                lambda r=request, a=answer: SumWriteResponse.decode(a, len(r.items)),
+            )
+            results.extend(response.results)
+        return results
+
+    async def _single_writes(self, items: Sequence[SumWriteItem]) -> list[int]:
+        async def one(item: SumWriteItem) -> int:
+            try:
+                await self.write(item.index_group, item.index_offset, item.data)
+            except AdsError as error:
+                if unreachable(error.code):
+                    raise
+                return error.code
+            return AdsReturnCode.NO_ERROR
+
+        return await _all(one(item) for item in items)
+
+    # -- symbols by handle -----------------------------------------------------
+
+    async def acquire_handles(self, names: Sequence[str]) -> list[int | AdsError]:
+        """A handle per symbol name (0xF003 in 0xF082 sums): per name the
+        handle, or that name's own error (AdsSymbolError: no such symbol)."""
+        outcomes = await self.sum_read_write(
+            [
+                SumReadWriteItem(
+                    IndexGroup.SYM_HANDLE_BY_NAME, 0, 4, encode_symbol_name(n)
+                )
+                for n in names
+            ]
+        )
+        handles: list[int | AdsError] = []
+        for name, (result, data) in zip(names, outcomes, strict=True):
+            if result != AdsReturnCode.NO_ERROR:
+                handles.append(ads_error(result, f"handle of {name!r}", self.target))
+            elif len(data) != U32.size:
+                handles.append(
+                    AdsProtocolError(
+                        AdsReturnCode.CLIENT_SYNC_RES_INVALID,
+                        f"handle of {name!r}",
+                        self.target,
+                        f"a handle is 4 bytes, got {len(data)}",
+                    )
+                )
+            else:
+                handles.append(int(U32.unpack(data)[0]))
+        return handles
+
+    async def read_by_handles(
+        self, reads: Sequence[tuple[int, int]]
+    ) -> list[ItemResult]:
+        """Values of (handle, size) pairs in 0xF080 sums of 0xF005 items: per
+        item its bytes or its own error (AdsHandleInvalidError: acquire the
+        handle again)."""
+        outcomes = await self.sum_read_items(
+            [SumReadItem(IndexGroup.SYM_VALUE_BY_HANDLE, h, size) for h, size in reads]
+        )
+        errors = self._handle_errors("read", [h for h, _ in reads], outcomes)
+        return [
+            data if error is None else error
+            for (_, data), error in zip(outcomes, errors, strict=True)
+        ]
+
+    async def read_by_handle(self, handle: int, size: int) -> bytes:
+        """One value by handle (0xF005, offset = handle); fewer bytes than the
+        symbol holds give its first bytes."""
+        operation = f"read of handle 0x{handle:X}"
+        response = await self._request(
+            operation,
+            ReadRequest(IndexGroup.SYM_VALUE_BY_HANDLE, handle, size),
+            ReadResponse,
+            by_handle=True,
+        )
+        return self._sized(operation, response.data, size, exact=True)
+
+    async def write_by_handle(self, handle: int, data: bytes) -> None:
+        """Write one value by handle; a size other than the symbol's is
+        refused by the target (0x705), an invalid handle raises
+        AdsHandleInvalidError."""
+        await self._request(
+            f"write of handle 0x{handle:X}",
+            WriteRequest(IndexGroup.SYM_VALUE_BY_HANDLE, handle, bytes(data)),
+            AdsResponse,
+            by_handle=True,
+        )
+
+    async def write_by_handles(
+        self, writes: Sequence[tuple[int, bytes]]
+    ) -> list[AdsError | None]:
+        """Write (handle, data) pairs (0xF081, or single writes where the
+        target refuses sum writes): per item None or its own error."""
+        results = await self.sum_write(
+            [SumWriteItem(IndexGroup.SYM_VALUE_BY_HANDLE, h, d) for h, d in writes]
+        )
+        return self._handle_errors("write", [h for h, _ in writes], results)
+
+    async def release_handles(self, handles: Sequence[int]) -> list[AdsError | None]:
+        """Release handles (0xF006 items of a 0xF081 sum, or single writes):
+        per handle None or its own error."""
+        results = await self.sum_write(
+            [
+                SumWriteItem(IndexGroup.SYM_RELEASE_HANDLE, 0, U32.pack(h))
+                for h in handles
+            ]
+        )
+        return self._handle_errors("release", handles, results)
+
+    def _handle_errors(
+        self,
+        verb: str,
+        handles: Sequence[int],
+        outcomes: Sequence[int] | Sequence[tuple[int, bytes]],
+    ) -> list[AdsError | None]:
+        """Per item of a sum by handle: None, or its typed error."""
+        errors: list[AdsError | None] = []
+        for handle, outcome in zip(handles, outcomes, strict=True):
+            result = outcome if isinstance(outcome, int) else outcome[0]
+            errors.append(
+                None
+                if result == AdsReturnCode.NO_ERROR
+                else ads_error(
+                    result,
+                    f"{verb} of handle 0x{handle:X}",
+                    self.target,
+                    by_handle=True,
+                )
+            )
+        return errors
+
+    # -- symbols by name and the tables ----------------------------------------------
+
     async def read_list_by_name(
         self, names: Sequence[str], ads_sub_commands: int = MAX_SUM_SUB_COMMANDS
     ) -> dict[str, Any]:
-        """pyads' `read_list_by_name`: values by symbol name, in sum requests.
-
-        pyads looks up each new name once (0xF009) and caches it; an item that
-        failed holds pyads' error text instead of a value.
-        """
-        return await self._call(
-            f"read list of {len(names)} names",
-            lambda: self._connection.read_list_by_name(
-                list(names), ads_sub_commands=ads_sub_commands
-            ),
+        """Values by symbol name, as pyads' `read_list_by_name` gives them:
+        each name's entry (0xF009 in 0xF082 sums), then 0xF080 sum reads; a
+        name that failed maps to its error's text instead of a value."""
+        infos = await self.sum_read_write(
+            [
+                SumReadWriteItem(
+                    IndexGroup.SYM_INFO_BY_NAME_EX,
+                    0,
+                    SYMBOL_INFO_SIZE,
+                    encode_symbol_name(name),
+                )
+                for name in names
+            ]
         )
+        values: dict[str, Any] = {}
+        found: list[tuple[str, AdsSymbolEntry]] = []
+        for name, (result, data) in zip(names, infos, strict=True):
+            if result != AdsReturnCode.NO_ERROR:
+                values[name] = str(ads_error(result, f"info of {name!r}", self.target))
+                continue
+            entry = self._decode("symbol info", lambda d=data: _entry(d))
+            found.append((name, entry))
+        outcomes = await self.sum_read_items(
+            [
+                SumReadItem(entry.index_group, entry.index_offset, entry.size)
+                for _, entry in found
+            ],
+            ads_sub_commands,
+        )
+        for (name, entry), (result, data) in zip(found, outcomes, strict=True):
+            if result != AdsReturnCode.NO_ERROR:
+                values[name] = str(ads_error(result, f"read of {name!r}", self.target))
+                continue
+            try:
+                values[name] = unpack_value(entry.type_name, data)
+            except AdsCodecError:
+                values[name] = data
+        return {name: values[name] for name in names}
+
+    async def read_symbol_version(self) -> int | None:
+        """The symbol version (0xF008), or None where the port does not
+        answer it (an I/O device port may not: never rely on it alone)."""
+        try:
+            return (await self.read(IndexGroup.SYM_VERSION, 0, 1))[0]
+        except (AdsConnectionError, AdsTimeoutError, AdsProtocolError):
+            raise
+        except AdsError as error:
+            logger.debug("%s: no symbol version: %s", self, error)
+            return None
 
     async def upload_symbols(self) -> SymbolTables:
-        """Upload 0xF00F (sizes), 0xF00B (symbols) and 0xF00E (data types)."""
+        """The symbol table (0xF00B) and data-type table (0xF00E).
 
-        def upload() -> SymbolTables:
-            info_raw = self._read(IndexGroup.SYM_UPLOAD_INFO_2, 0, _UPLOAD_INFO_2_SIZE)
-            info = self._decode(
-                "symbol upload", lambda: SymbolUploadInfo2.decode(info_raw)
+        Their sizes come from 0xF00F (24 bytes); a target that does not
+        answer it, or answers fewer bytes (older TwinCAT), is asked 0xF00C
+        (8 bytes: symbol count and table size) and its data-type table is
+        read as far as it goes, or left empty if it has none.
+        """
+        info = await self._upload_info()
+        symbols_raw = await self.read(IndexGroup.SYM_UPLOAD, 0, info.symbol_table_size)
+        symbols = self._decode(
+            "symbol upload", lambda: decode_symbol_table(symbols_raw, info.symbol_count)
+        )
+        types_raw = await self._data_type_table(info)
+        data_types = self._decode(
+            "data type upload",
+            lambda: decode_data_type_table(
+                types_raw, info.data_type_count if info.data_type_table_size else None
+            ),
+        )
+        if not info.data_type_table_size:
+            info = SymbolUploadInfo2(
+                info.symbol_count,
+                info.symbol_table_size,
+                len(data_types),
+                len(types_raw),
             )
-            symbols_raw = self._read(IndexGroup.SYM_UPLOAD, 0, info.symbol_table_size)
-            types_raw = self._read(
+        return SymbolTables(info, symbols, data_types, symbols_raw, types_raw)
+
+    async def _upload_info(self) -> SymbolUploadInfo2:
+        try:
+            raw = await self.read(
+                IndexGroup.SYM_UPLOAD_INFO_2, 0, UPLOAD_INFO_2_SIZE, exact=False
+            )
+        except (AdsConnectionError, AdsTimeoutError):
+            raise
+        except AdsError as error:
+            logger.debug("%s: no upload info 2 (%s): asking 0xF00C", self, error)
+            raw = b""
+        if len(raw) >= UPLOAD_INFO_2_SIZE:
+            return self._decode("symbol upload", lambda: SymbolUploadInfo2.decode(raw))
+        old = await self.read(IndexGroup.SYM_UPLOAD_INFO, 0, UPLOAD_INFO_SIZE)
+        info = self._decode("symbol upload", lambda: SymbolUploadInfo.decode(old))
+        return SymbolUploadInfo2(info.symbol_count, info.symbol_table_size)
+
+    async def _data_type_table(self, info: SymbolUploadInfo2) -> bytes:
+        if info.data_type_table_size:
+            return await self.read(
                 IndexGroup.SYM_DT_UPLOAD, 0, info.data_type_table_size
             )
-            symbols = self._decode(
-                "symbol upload",
-                lambda: decode_symbol_table(symbols_raw, info.symbol_count),
+        try:
+            return await self.read(
+                IndexGroup.SYM_DT_UPLOAD, 0, DATA_TYPE_TABLE_LIMIT, exact=False
             )
-            data_types = self._decode(
-                "data type upload",
-                lambda: decode_data_type_table(types_raw, info.data_type_count),
-            )
-            return SymbolTables(info, symbols, data_types, symbols_raw, types_raw)
+        except (AdsConnectionError, AdsTimeoutError):
+            raise
+        except AdsError as error:
+            logger.debug("%s: no data-type table: %s", self, error)
+            return b""
 
-        return await self._call("symbol upload", upload)
+    # -- notifications -------------------------------------------------------------
 
     async def add_notification(
         self,
@@ -430,122 +667,140 @@ class AdsClient:
         cycle_time_ms: float = 10.0,
         max_delay_ms: float = 0.0,
     ) -> NotificationHandle:
-        """Subscribe to (group, offset, size); `callback` runs on the loop."""
-        loop = asyncio.get_running_loop()
-        attributes = pyads.NotificationAttrib(
-            size, int(mode), max_delay=max_delay_ms, cycle_time=cycle_time_ms
-        )
+        """Subscribe to (group, offset, size); `callback` runs on the loop.
 
-        def on_notification(pointer: Any, _address: Any) -> None:
-            # AdsLib's receive thread: copy the bytes now, they die on return.
-            try:
-                header = pointer.contents
-                data = ctypes.string_at(
-                    ctypes.addressof(header) + SAdsNotificationHeader.data.offset,
-                    header.cbSampleSize,
-                )
-                sample = Notification(header.hNotification, header.nTimeStamp, data)
-                loop.call_soon_threadsafe(callback, sample)
-            except RuntimeError:
-                pass  # the loop is closed: nobody is listening any more
-
-        def add() -> NotificationHandle:
-            handles = _opened(
-                self._connection.add_device_notification(
-                    (index_group, index_offset), attributes, on_notification
-                )
-            )
-            handle = NotificationHandle(handles[0], handles[1])
-            self._notifications.add(handle)
-            return handle
-
-        return await self._call(
-            f"add notification 0x{index_group:X}:0x{index_offset:X}", add
-        )
-
-    async def delete_notification(self, handle: NotificationHandle) -> None:
-        def delete() -> None:
-            self._notifications.discard(handle)
-            self._connection.del_device_notification(
-                handle.notification, _user_handle(handle)
-            )
-
-        await self._call("delete notification", delete)
-
-    # -- on the worker thread ----------------------------------------------
-
-    def _read(self, index_group: int, index_offset: int, size: int) -> bytes:
-        if size == 0:
-            return b""
-        raw = self._connection.read(
-            index_group, index_offset, ctypes.c_ubyte * size, return_ctypes=True
-        )
-        return bytes(_opened(raw))
-
-    def _read_write(
-        self,
-        index_group: int,
-        index_offset: int,
-        read_size: int,
-        data: bytes,
-        exact: bool,
-    ) -> bytes:
-        write_type = ctypes.c_ubyte * len(data)
-        raw = self._connection.read_write(
+        The handle is registered the moment its answer is read, before any
+        later frame: the first sample always finds its callback.
+        """
+        request = AddDeviceNotificationRequest(
             index_group,
             index_offset,
-            ctypes.c_ubyte * read_size if read_size else None,
-            write_type.from_buffer_copy(data),
-            write_type if data else None,
-            return_ctypes=True,
-            check_length=exact,
+            size,
+            int(mode),
+            notification_time_from_ms(max_delay_ms),
+            notification_time_from_ms(cycle_time_ms),
         )
-        return bytes(raw) if read_size else b""
 
-    def _sum_read_chunk(self, chunk: Sequence[SumReadItem]) -> bytes:
-        requests = (SAdsSumRequest * len(chunk))()
-        for request, item in zip(requests, chunk, strict=True):
-            request.iGroup = item.index_group
-            request.iOffset = item.index_offset
-            request.size = item.length
-        raw = self._connection.read_write(
-            ADSIGRP_SUMUP_READ, len(chunk), None, requests, None, return_ctypes=True
+        def register(answer: Answered) -> None:
+            response = answer.response
+            if (
+                not answer.packet.error_code
+                and isinstance(response, AddDeviceNotificationResponse)
+                and response.result == AdsReturnCode.NO_ERROR
+                and not self._closed
+            ):
+                self._subscriptions[response.handle] = _Subscription(callback, size)
+
+        response = await self._request(
+            f"add notification 0x{index_group:X}:0x{index_offset:X}",
+            request,
+            AddDeviceNotificationResponse,
+            on_answer=register,
         )
-        return bytes(_opened(raw))
+        return NotificationHandle(response.handle)
 
-    # -- plumbing ------------------------------------------------------------
+    async def delete_notification(self, handle: NotificationHandle) -> None:
+        self._subscriptions.pop(handle.notification, None)
+        await self._request(
+            "delete notification",
+            DeleteDeviceNotificationRequest(handle.notification),
+            AdsResponse,
+        )
 
-    async def _call(self, operation: str, job: Callable[[], _T]) -> _T:
-        loop = asyncio.get_running_loop()
+    def notified(
+        self, source: AmsAddress, stamps: tuple[NotificationStamp, ...]
+    ) -> None:
+        """Samples the connection received for our port (on the loop)."""
+        if source != self.address:
+            return
+        for stamp in stamps:
+            for sample in stamp.samples:
+                subscription = self._subscriptions.get(sample.handle)
+                if subscription is None:
+                    continue  # deleted, or never ours
+                if len(sample.data) > subscription.size:
+                    self._log.warning(
+                        "oversize",
+                        "%s: notification %d carries %d bytes for %d: dropped",
+                        self,
+                        sample.handle,
+                        len(sample.data),
+                        subscription.size,
+                    )
+                    continue
+                notification = Notification(sample.handle, stamp.timestamp, sample.data)
+                try:
+                    subscription.callback(notification)
+                except Exception:
+                    logger.exception("%s: notification callback failed", self)
 
-        def unless_closed() -> _T:
-            if self._closed:  # closed while this request waited its turn
-                raise RuntimeError("cannot schedule new futures after shutdown")
-            return job()
-
-        try:
-            return await loop.run_in_executor(self._executor, unless_closed)
-        except pyads.ADSError as error:
-            code = getattr(error, "err_code", AdsReturnCode.CLIENT_ERROR)
-            raise ads_error(code, operation, self.target) from error
-        except AdsError:
-            raise
-        except RuntimeError as error:
-            raise self._runtime_error(operation, error) from error
-
-    def _runtime_error(self, operation: str, error: RuntimeError) -> AdsError:
-        text = str(error)
-        if "Insufficient data" in text:
-            return AdsProtocolError(
-                AdsReturnCode.DEVICE_INVALID_SIZE, operation, self.target, text
+    def connection_lost(self) -> None:
+        """The target forgot our notifications with the connection."""
+        if self._subscriptions:
+            logger.warning(
+                "%s: connection lost, %d notifications gone",
+                self,
+                len(self._subscriptions),
             )
-        if "after shutdown" in text:
-            return AdsConnectionError(
-                AdsReturnCode.CLIENT_PORT_NOT_OPEN, operation, self.target, "closed"
-            )
-        return AdsConnectionError(
-            AdsReturnCode.CLIENT_PORT_NOT_OPEN, operation, self.target, text
+            self._subscriptions.clear()
+
+    # -- plumbing --------------------------------------------------------------
+
+    async def _request(
+        self,
+        operation: str,
+        request: AdsRequest,
+        expected: type[_Response],
+        *,
+        on_answer: Callable[[Answered], object] | None = None,
+        by_handle: bool = False,
+    ) -> _Response:
+        if self._closed:
+            raise self._closed_error(operation)
+        port = self._port
+        if port is None:  # not opened: the first request takes the port
+            port = self._port = self._connection.open_port(self)
+        answer = await self._connection.request(
+            self.address,
+            port,
+            request,
+            timeout_s=self.timeout_s,
+            operation=operation,
+            who=self.target,
+            on_answer=on_answer,
         )
+        if answer.packet.error_code != AdsReturnCode.NO_ERROR:
+            raise ads_error(answer.packet.error_code, operation, self.target)
+        response = answer.response
+        if response is None:
+            raise AdsProtocolError(
+                AdsReturnCode.CLIENT_SYNC_RES_INVALID,
+                operation,
+                self.target,
+                "empty answer",
+            )
+        if response.result != AdsReturnCode.NO_ERROR:
+            raise ads_error(
+                response.result, operation, self.target, by_handle=by_handle
+            )
+        if not isinstance(response, expected):
+            raise AdsProtocolError(
+                AdsReturnCode.CLIENT_SYNC_RES_INVALID,
+                operation,
+                self.target,
+                f"a {type(response).__name__} answered",
+            )
+        return response
+
+    def _sized(self, operation: str, data: bytes, size: int, exact: bool) -> bytes:
+        if exact and len(data) != size:
+            raise AdsProtocolError(
+                AdsReturnCode.DEVICE_INVALID_SIZE,
+                operation,
+                self.target,
+                f"{len(data)} bytes answered, {size} asked for",
+            )
+        return data
 
     def _decode(self, operation: str, decode: Callable[[], _T]) -> _T:
         try:
@@ -555,115 +810,81 @@ class AdsClient:
                 error.return_code, operation, self.target, str(error)
             ) from error
 
-
-def _opened(result: _T | None) -> _T:
-    """pyads returns None instead of raising when the connection is not open."""
-    if result is None:
-        raise RuntimeError("the connection is not open")
-    return result
-
-
-def _user_handle(handle: NotificationHandle) -> int:
-    """pyads types the user handle as int but takes None for "none to release"."""
-    return cast(int, handle.user)
-
-
-def _ads_state(value: int) -> AdsState | int:
-    try:
-        return AdsState(value)
-    except ValueError:
-        return value
-
-
-# -- process-wide: local NetId, discovery, routes ---------------------------
-
-
-def set_local_net_id(net_id: str | AmsNetId) -> None:
-    """Set this process's AMS NetId (AdsLib's router is one per process)."""
-    pyads.set_local_address(str(net_id))
-
-
-def local_ip_towards(host: str) -> str:
-    """The local IPv4 address the kernel would use to reach `host` (no traffic)."""
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
-        probe.connect((host, ADS_UDP_PORT))
-        return str(probe.getsockname()[0])
-
-
-async def discover_net_id(host: str) -> AmsNetId:
-    """Ask `host` for its AMS NetId on UDP 48899 (pyads' `adsGetNetIdForPLC`)."""
-    target = f"{host}:{ADS_UDP_PORT}"
-    try:
-        text = await asyncio.to_thread(adsGetNetIdForPLC, host)
-    except TimeoutError as error:
-        raise AdsTimeoutError(
-            AdsReturnCode.CLIENT_SYNC_TIMEOUT, "NetId discovery", target
-        ) from error
-    except RuntimeError as error:
-        raise AdsProtocolError(
-            AdsReturnCode.DEVICE_INVALID_DATA, "NetId discovery", target, str(error)
-        ) from error
-    except OSError as error:
-        raise AdsConnectionError(
-            AdsReturnCode.TARGET_MACHINE_NOT_FOUND,
-            "NetId discovery",
-            target,
-            error.strerror or str(error),
-        ) from error
-    return AmsNetId.parse(text)
-
-
-async def add_route(
-    host: str,
-    *,
-    local_net_id: str | AmsNetId,
-    host_address: str,
-    user: str,
-    password: SecretStr,
-    route_name: str | None = None,
-) -> None:
-    """Ask `host` to add a route back to us (pyads' `add_route_to_plc`).
-
-    `host_address` is how the target reaches this host. The password leaves
-    its `SecretStr` only inside the worker call; it is never logged and never
-    part of an exception.
-    """
-    target = f"{host}:{ADS_UDP_PORT}"
-
-    def add() -> bool:
-        return pyads.add_route_to_plc(
-            str(local_net_id),
-            host_address,
-            host,
-            user,
-            password.get_secret_value(),
-            route_name=route_name or socket.gethostname(),
+    def _closed_error(self, operation: str) -> AdsConnectionError:
+        return AdsConnectionError(
+            AdsReturnCode.CLIENT_PORT_NOT_OPEN, operation, self.target, "closed"
         )
 
-    logger.info(
-        "adding route %s -> %s on %s as %s", route_name, local_net_id, host, user
-    )
-    try:
-        accepted = await asyncio.to_thread(add)
-    except TimeoutError as error:
-        raise AdsTimeoutError(
-            AdsReturnCode.CLIENT_SYNC_TIMEOUT, "add route", target
-        ) from error
-    except RuntimeError as error:
-        raise AdsRouteError(
-            AdsReturnCode.DEVICE_INVALID_DATA, "add route", target, "unexpected reply"
-        ) from error
-    except OSError as error:
-        raise AdsConnectionError(
-            AdsReturnCode.TARGET_MACHINE_NOT_FOUND,
-            "add route",
-            target,
-            error.strerror or str(error),
-        ) from error
-    if not accepted:
-        raise AdsRouteError(
-            AdsReturnCode.DEVICE_ACCESS_DENIED,
-            "add route",
-            target,
-            f"user {user!r} or its password was refused",
+    async def _delete_quietly(self, port: int, handles: list[int]) -> None:
+        """Delete notifications on close, briefly: a dead target is not
+        waited for (the connection forgets them anyway)."""
+
+        async def delete(handle: int) -> None:
+            await self._connection.request(
+                self.address,
+                port,
+                DeleteDeviceNotificationRequest(handle),
+                timeout_s=min(self.timeout_s, 1.0),
+                operation="delete notification",
+                who=self.target,
+            )
+
+        results = await asyncio.gather(
+            *(delete(h) for h in handles), return_exceptions=True
         )
+        failed = [r for r in results if isinstance(r, BaseException)]
+        if failed:
+            logger.debug(
+                "%s: %d notifications not deleted: %s", self, len(failed), failed[0]
+            )
+
+
+_Response = TypeVar("_Response", bound=AdsResponse)
+
+
+async def _all(awaitables: Any) -> list[Any]:
+    """Await all at once (one directly); the first error is raised once
+    every one has finished."""
+    pending = list(awaitables)
+    if len(pending) == 1:
+        return [await pending[0]]
+    results = await asyncio.gather(*pending, return_exceptions=True)
+    for result in results:
+        if isinstance(result, BaseException):
+            raise result
+    return results
+
+
+def _entry(data: bytes) -> AdsSymbolEntry:
+    entry, _ = AdsSymbolEntry.decode_at(data)
+    return entry
+
+
+__all__ = [
+    "AdsClient",
+    "AdsConnectTimeoutError",
+    "AdsConnectionError",
+    "AdsConnectionLostError",
+    "AdsConnectionRefusedError",
+    "AdsError",
+    "AdsHandleInvalidError",
+    "AdsHostUnreachableError",
+    "AdsProtocolError",
+    "AdsRouteError",
+    "AdsStatus",
+    "AdsSymbolError",
+    "AdsTimeoutError",
+    "AdsUnknownHostError",
+    "DeviceInfo",
+    "ItemResult",
+    "Notification",
+    "NotificationCallback",
+    "NotificationHandle",
+    "SymbolTables",
+    "add_route",
+    "ads_error",
+    "discover_net_id",
+    "local_ip_towards",
+    "set_local_net_id",
+    "unreachable",
+]

@@ -11,9 +11,9 @@ unknown command).
 from __future__ import annotations
 
 import struct
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from datetime import UTC, datetime, timedelta
-from typing import ClassVar, Final, Self, TypeVar
+from typing import Any, ClassVar, Final, Self, TypeVar, cast
 
 from fastcs_ethercat.ads.constants import (
     NOTIFICATION_TIME_UNITS_PER_MS,
@@ -21,7 +21,14 @@ from fastcs_ethercat.ads.constants import (
     AmsCommand,
 )
 from fastcs_ethercat.ads.errors import AdsCodecError
-from fastcs_ethercat.ads.wire import ByteReader, decode_c_string, encode_text
+from fastcs_ethercat.ads.frames import AmsPacket
+from fastcs_ethercat.ads.wire import (
+    ByteReader,
+    FixedRecord,
+    decode_c_string,
+    encode_text,
+    pack,
+)
 
 DEVICE_NAME_SIZE: Final = 16
 NOTIFICATION_RESERVED_SIZE: Final = 16
@@ -32,17 +39,6 @@ FILETIME_TICKS_PER_SECOND: Final = 10_000_000
 _FILETIME_START: Final = datetime(1601, 1, 1, tzinfo=UTC)
 
 _T = TypeVar("_T")
-
-
-def _pack(fmt: str, *values: int) -> bytes:
-    """struct.pack that reports out-of-range fields as a codec error."""
-    try:
-        return struct.pack(fmt, *values)
-    except struct.error as error:
-        raise AdsCodecError(
-            f"field out of range for {fmt!r}: {error}",
-            AdsReturnCode.DEVICE_INVALID_DATA,
-        ) from error
 
 
 # -- time stamps ------------------------------------------------------------
@@ -88,34 +84,6 @@ def notification_time_to_ms(units: int) -> float:
 # -- shared pieces ----------------------------------------------------------
 
 
-def _result_only(reader: ByteReader) -> int | None:
-    """If the payload is just a failing result, return it; else None.
-
-    Some servers answer a failed Read/ReadWrite/... with only the 4-byte
-    result instead of the full layout; accept that on decode.
-    """
-    if reader.remaining == 4:
-        result = reader.u32()
-        if result != AdsReturnCode.NO_ERROR:
-            return result
-        raise AdsCodecError(
-            f"{reader.what}: a successful response needs more than its result",
-            AdsReturnCode.DEVICE_INVALID_SIZE,
-        )
-    return None
-
-
-def _sized_data(reader: ByteReader, length: int) -> bytes:
-    """Read `length` data bytes that must be exactly the rest of the payload."""
-    if length != reader.remaining:
-        raise AdsCodecError(
-            f"{reader.what}: length field says {length} data bytes, payload has "
-            f"{reader.remaining}",
-            AdsReturnCode.DEVICE_INVALID_SIZE,
-        )
-    return reader.take(length)
-
-
 class _Payload:
     """Base of every command payload: knows its command id and direction."""
 
@@ -126,7 +94,7 @@ class _Payload:
         raise NotImplementedError
 
     @classmethod
-    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
+    def decode(cls, raw: bytes | bytearray | memoryview) -> Self:
         raise NotImplementedError
 
 
@@ -143,20 +111,80 @@ class AdsResponse(_Payload):
     result: int
 
 
+class _Fixed(FixedRecord, _Payload):
+    """A payload of fixed-size fields (a response may be its result alone)."""
+
+    @classmethod
+    def decode(cls, raw: bytes | bytearray | memoryview) -> Self:
+        reader = ByteReader(raw, cls.__name__)
+        if (failed := _result_only(cls, reader)) is not None:
+            return failed
+        return cls.from_reader(reader)
+
+
+class _Sized(_Payload):
+    """Fixed fields, a data length (the layout's last field) and that many
+    bytes of `data` (the dataclass's last field)."""
+
+    layout: ClassVar[struct.Struct]
+
+    def encode(self) -> bytes:
+        *head, data = (getattr(self, f.name) for f in fields(cast(Any, self)))
+        return pack(self.layout.format, *head, len(data)) + bytes(data)
+
+    @classmethod
+    def decode(cls, raw: bytes | bytearray | memoryview) -> Self:
+        reader = ByteReader(raw, cls.__name__)
+        if (failed := _result_only(cls, reader)) is not None:
+            return failed
+        *head, length = cls.layout.unpack(reader.take(cls.layout.size))
+        if length != reader.remaining:
+            raise AdsCodecError(
+                f"{reader.what}: length field says {length} data bytes, payload "
+                f"has {reader.remaining}",
+                AdsReturnCode.DEVICE_INVALID_SIZE,
+            )
+        return cast(Any, cls)(*head, reader.take(length))
+
+
+def _result_only(cls: type[_T], reader: ByteReader) -> _T | None:
+    """A failed response that is only its 4-byte result (some servers answer
+    a failed Read, ReadWrite, ... so): the response with that result."""
+    if not (issubclass(cls, AdsResponse) and reader.remaining == 4):
+        return None
+    layout = getattr(cls, "layout", None)
+    if layout is not None and layout.size == 4:
+        return None  # the result is the whole layout
+    result = reader.u32()
+    if result == AdsReturnCode.NO_ERROR:
+        raise AdsCodecError(
+            f"{reader.what}: a successful response needs more than its result",
+            AdsReturnCode.DEVICE_INVALID_SIZE,
+        )
+    return cls(result=result)  # type: ignore[call-arg]
+
+
+@dataclass(frozen=True, slots=True)
+class _NoFields(_Fixed):
+    """A request with no payload."""
+
+    layout = struct.Struct("<")
+
+
+@dataclass(frozen=True, slots=True)
+class _ResultOnly(_Fixed, AdsResponse):
+    """A response that is its result alone."""
+
+    layout = struct.Struct("<I")
+    result: int = AdsReturnCode.NO_ERROR
+
+
 # -- ReadDeviceInfo (1) -----------------------------------------------------
 
 
 @dataclass(frozen=True, slots=True)
-class ReadDeviceInfoRequest(AdsRequest):
+class ReadDeviceInfoRequest(_NoFields, AdsRequest):
     command = AmsCommand.READ_DEVICE_INFO
-
-    def encode(self) -> bytes:
-        return b""
-
-    @classmethod
-    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
-        ByteReader(payload, "ReadDeviceInfo request").expect_end()
-        return cls()
 
 
 @dataclass(frozen=True, slots=True)
@@ -177,15 +205,15 @@ class ReadDeviceInfoResponse(AdsResponse):
                 f"device name {self.name!r} is longer than {DEVICE_NAME_SIZE} bytes",
                 AdsReturnCode.DEVICE_INVALID_DATA,
             )
-        return _pack("<IBBH", self.result, self.major, self.minor, self.build) + (
+        return pack("<IBBH", self.result, self.major, self.minor, self.build) + (
             name.ljust(DEVICE_NAME_SIZE, b"\0")
         )
 
     @classmethod
-    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
-        reader = ByteReader(payload, "ReadDeviceInfo response")
-        if (result := _result_only(reader)) is not None:
-            return cls(result=result)
+    def decode(cls, raw: bytes | bytearray | memoryview) -> Self:
+        reader = ByteReader(raw, "ReadDeviceInfo response")
+        if (failed := _result_only(cls, reader)) is not None:
+            return failed
         result = reader.u32()
         major, minor, build = reader.u8(), reader.u8(), reader.u16()
         name = decode_c_string(reader.take(DEVICE_NAME_SIZE))
@@ -193,163 +221,99 @@ class ReadDeviceInfoResponse(AdsResponse):
         return cls(result, major, minor, build, name)
 
 
-# -- Read (2) ---------------------------------------------------------------
+# -- Read (2), Write (3), ReadWrite (9) ----------------------------------------
 
 
 @dataclass(frozen=True, slots=True)
-class ReadRequest(AdsRequest):
+class ReadRequest(_Fixed, AdsRequest):
     command = AmsCommand.READ
+    layout = struct.Struct("<III")
     index_group: int
     index_offset: int
     length: int
 
-    def encode(self) -> bytes:
-        return _pack("<III", self.index_group, self.index_offset, self.length)
-
-    @classmethod
-    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
-        reader = ByteReader(payload, "Read request")
-        request = cls(reader.u32(), reader.u32(), reader.u32())
-        reader.expect_end()
-        return request
-
 
 @dataclass(frozen=True, slots=True)
-class ReadResponse(AdsResponse):
+class ReadResponse(_Sized, AdsResponse):
     command = AmsCommand.READ
+    layout = struct.Struct("<II")
     result: int = AdsReturnCode.NO_ERROR
     data: bytes = b""
 
-    def encode(self) -> bytes:
-        return _pack("<II", self.result, len(self.data)) + bytes(self.data)
-
-    @classmethod
-    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
-        reader = ByteReader(payload, "Read response")
-        if (result := _result_only(reader)) is not None:
-            return cls(result=result)
-        result = reader.u32()
-        return cls(result, _sized_data(reader, reader.u32()))
-
-
-# -- Write (3) --------------------------------------------------------------
-
 
 @dataclass(frozen=True, slots=True)
-class WriteRequest(AdsRequest):
+class WriteRequest(_Sized, AdsRequest):
     command = AmsCommand.WRITE
+    layout = struct.Struct("<III")
     index_group: int
     index_offset: int
     data: bytes = b""
 
-    def encode(self) -> bytes:
-        header = _pack("<III", self.index_group, self.index_offset, len(self.data))
-        return header + bytes(self.data)
-
-    @classmethod
-    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
-        reader = ByteReader(payload, "Write request")
-        group, offset, length = reader.u32(), reader.u32(), reader.u32()
-        return cls(group, offset, _sized_data(reader, length))
-
 
 @dataclass(frozen=True, slots=True)
-class WriteResponse(AdsResponse):
+class WriteResponse(_ResultOnly):
     command = AmsCommand.WRITE
+
+
+@dataclass(frozen=True, slots=True)
+class ReadWriteRequest(_Sized, AdsRequest):
+    command = AmsCommand.READ_WRITE
+    layout = struct.Struct("<IIII")
+    index_group: int
+    index_offset: int
+    read_length: int
+    data: bytes = b""
+
+
+@dataclass(frozen=True, slots=True)
+class ReadWriteResponse(_Sized, AdsResponse):
+    command = AmsCommand.READ_WRITE
+    layout = struct.Struct("<II")
     result: int = AdsReturnCode.NO_ERROR
-
-    def encode(self) -> bytes:
-        return _pack("<I", self.result)
-
-    @classmethod
-    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
-        reader = ByteReader(payload, "Write response")
-        response = cls(reader.u32())
-        reader.expect_end()
-        return response
+    data: bytes = b""
 
 
-# -- ReadState (4) ----------------------------------------------------------
+# -- ReadState (4), WriteControl (5) -----------------------------------------
 
 
 @dataclass(frozen=True, slots=True)
-class ReadStateRequest(AdsRequest):
+class ReadStateRequest(_NoFields, AdsRequest):
     command = AmsCommand.READ_STATE
-
-    def encode(self) -> bytes:
-        return b""
-
-    @classmethod
-    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
-        ByteReader(payload, "ReadState request").expect_end()
-        return cls()
 
 
 @dataclass(frozen=True, slots=True)
-class ReadStateResponse(AdsResponse):
+class ReadStateResponse(_Fixed, AdsResponse):
     command = AmsCommand.READ_STATE
+    layout = struct.Struct("<IHH")
     result: int = AdsReturnCode.NO_ERROR
     ads_state: int = 0
     device_state: int = 0
 
-    def encode(self) -> bytes:
-        return _pack("<IHH", self.result, self.ads_state, self.device_state)
-
-    @classmethod
-    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
-        reader = ByteReader(payload, "ReadState response")
-        if (result := _result_only(reader)) is not None:
-            return cls(result=result)
-        response = cls(reader.u32(), reader.u16(), reader.u16())
-        reader.expect_end()
-        return response
-
-
-# -- WriteControl (5) -------------------------------------------------------
-
 
 @dataclass(frozen=True, slots=True)
-class WriteControlRequest(AdsRequest):
+class WriteControlRequest(_Sized, AdsRequest):
     command = AmsCommand.WRITE_CONTROL
+    layout = struct.Struct("<HHI")
     ads_state: int
     device_state: int = 0
     data: bytes = b""
 
-    def encode(self) -> bytes:
-        header = _pack("<HHI", self.ads_state, self.device_state, len(self.data))
-        return header + bytes(self.data)
-
-    @classmethod
-    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
-        reader = ByteReader(payload, "WriteControl request")
-        ads_state, device_state, length = reader.u16(), reader.u16(), reader.u32()
-        return cls(ads_state, device_state, _sized_data(reader, length))
-
 
 @dataclass(frozen=True, slots=True)
-class WriteControlResponse(AdsResponse):
+class WriteControlResponse(_ResultOnly):
     command = AmsCommand.WRITE_CONTROL
-    result: int = AdsReturnCode.NO_ERROR
-
-    def encode(self) -> bytes:
-        return _pack("<I", self.result)
-
-    @classmethod
-    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
-        reader = ByteReader(payload, "WriteControl response")
-        response = cls(reader.u32())
-        reader.expect_end()
-        return response
 
 
-# -- AddDeviceNotification (6) ----------------------------------------------
+# -- Add / DeleteDeviceNotification (6, 7) ------------------------------------
 
 
 @dataclass(frozen=True, slots=True)
-class AddDeviceNotificationRequest(AdsRequest):
+class AddDeviceNotificationRequest(_Fixed, AdsRequest):
     """Max delay and cycle time are in 100 ns units (ms x 10 000)."""
 
     command = AmsCommand.ADD_DEVICE_NOTIFICATION
+    layout = struct.Struct("<IIIIII")
+    reserved = NOTIFICATION_RESERVED_SIZE
     index_group: int
     index_offset: int
     length: int
@@ -357,78 +321,25 @@ class AddDeviceNotificationRequest(AdsRequest):
     max_delay: int = 0
     cycle_time: int = 0
 
-    def encode(self) -> bytes:
-        return _pack(
-            "<IIIIII",
-            self.index_group,
-            self.index_offset,
-            self.length,
-            self.transmission_mode,
-            self.max_delay,
-            self.cycle_time,
-        ) + bytes(NOTIFICATION_RESERVED_SIZE)
-
-    @classmethod
-    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
-        reader = ByteReader(payload, "AddDeviceNotification request")
-        request = cls(*(reader.u32() for _ in range(6)))
-        reader.take(NOTIFICATION_RESERVED_SIZE)
-        reader.expect_end()
-        return request
-
 
 @dataclass(frozen=True, slots=True)
-class AddDeviceNotificationResponse(AdsResponse):
+class AddDeviceNotificationResponse(_Fixed, AdsResponse):
     command = AmsCommand.ADD_DEVICE_NOTIFICATION
+    layout = struct.Struct("<II")
     result: int = AdsReturnCode.NO_ERROR
     handle: int = 0
 
-    def encode(self) -> bytes:
-        return _pack("<II", self.result, self.handle)
-
-    @classmethod
-    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
-        reader = ByteReader(payload, "AddDeviceNotification response")
-        if (result := _result_only(reader)) is not None:
-            return cls(result=result)
-        response = cls(reader.u32(), reader.u32())
-        reader.expect_end()
-        return response
-
-
-# -- DeleteDeviceNotification (7) -------------------------------------------
-
 
 @dataclass(frozen=True, slots=True)
-class DeleteDeviceNotificationRequest(AdsRequest):
+class DeleteDeviceNotificationRequest(_Fixed, AdsRequest):
     command = AmsCommand.DELETE_DEVICE_NOTIFICATION
+    layout = struct.Struct("<I")
     handle: int
 
-    def encode(self) -> bytes:
-        return _pack("<I", self.handle)
-
-    @classmethod
-    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
-        reader = ByteReader(payload, "DeleteDeviceNotification request")
-        request = cls(reader.u32())
-        reader.expect_end()
-        return request
-
 
 @dataclass(frozen=True, slots=True)
-class DeleteDeviceNotificationResponse(AdsResponse):
+class DeleteDeviceNotificationResponse(_ResultOnly):
     command = AmsCommand.DELETE_DEVICE_NOTIFICATION
-    result: int = AdsReturnCode.NO_ERROR
-
-    def encode(self) -> bytes:
-        return _pack("<I", self.result)
-
-    @classmethod
-    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
-        reader = ByteReader(payload, "DeleteDeviceNotification response")
-        response = cls(reader.u32())
-        reader.expect_end()
-        return response
 
 
 # -- DeviceNotification (8, server -> client, never answered) ---------------
@@ -464,18 +375,18 @@ class DeviceNotification(AdsRequest):
     stamps: tuple[NotificationStamp, ...] = field(default=())
 
     def encode(self) -> bytes:
-        parts = [_pack("<I", len(self.stamps))]
+        parts = [pack("<I", len(self.stamps))]
         for stamp in self.stamps:
-            parts.append(_pack("<QI", stamp.timestamp, len(stamp.samples)))
+            parts.append(pack("<QI", stamp.timestamp, len(stamp.samples)))
             for sample in stamp.samples:
-                parts.append(_pack("<II", sample.handle, len(sample.data)))
+                parts.append(pack("<II", sample.handle, len(sample.data)))
                 parts.append(bytes(sample.data))
         body = b"".join(parts)
-        return _pack("<I", len(body)) + body
+        return pack("<I", len(body)) + body
 
     @classmethod
-    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
-        reader = ByteReader(payload, "DeviceNotification")
+    def decode(cls, raw: bytes | bytearray | memoryview) -> Self:
+        reader = ByteReader(raw, "DeviceNotification")
         length = reader.u32()
         if length != reader.remaining:
             raise AdsCodecError(
@@ -494,53 +405,6 @@ class DeviceNotification(AdsRequest):
             stamps.append(NotificationStamp(timestamp, tuple(samples)))
         reader.expect_end()
         return cls(tuple(stamps))
-
-
-# -- ReadWrite (9) ----------------------------------------------------------
-
-
-@dataclass(frozen=True, slots=True)
-class ReadWriteRequest(AdsRequest):
-    command = AmsCommand.READ_WRITE
-    index_group: int
-    index_offset: int
-    read_length: int
-    data: bytes = b""
-
-    def encode(self) -> bytes:
-        header = _pack(
-            "<IIII",
-            self.index_group,
-            self.index_offset,
-            self.read_length,
-            len(self.data),
-        )
-        return header + bytes(self.data)
-
-    @classmethod
-    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
-        reader = ByteReader(payload, "ReadWrite request")
-        group, offset = reader.u32(), reader.u32()
-        read_length, write_length = reader.u32(), reader.u32()
-        return cls(group, offset, read_length, _sized_data(reader, write_length))
-
-
-@dataclass(frozen=True, slots=True)
-class ReadWriteResponse(AdsResponse):
-    command = AmsCommand.READ_WRITE
-    result: int = AdsReturnCode.NO_ERROR
-    data: bytes = b""
-
-    def encode(self) -> bytes:
-        return _pack("<II", self.result, len(self.data)) + bytes(self.data)
-
-    @classmethod
-    def decode(cls, payload: bytes | bytearray | memoryview) -> Self:
-        reader = ByteReader(payload, "ReadWrite response")
-        if (result := _result_only(reader)) is not None:
-            return cls(result=result)
-        result = reader.u32()
-        return cls(result, _sized_data(reader, reader.u32()))
 
 
 # -- dispatch ---------------------------------------------------------------
@@ -608,3 +472,14 @@ def error_response(command_id: int, result: int) -> AdsResponse:
     Raises 0x701 for commands without a response.
     """
     return _lookup(RESPONSE_TYPES, command_id, "response")(result=result)  # type: ignore[call-arg]
+
+
+def error_packet(packet: AmsPacket, code: int) -> AmsPacket:
+    """The answer to request `packet` failing with `code`: in the result field
+    of its command's response, or in the AMS header's error code for a
+    command without one."""
+    try:
+        payload = error_response(int(packet.command), code).encode()
+    except AdsCodecError:
+        return packet.response(error_code=code)
+    return packet.response(payload=payload)

@@ -360,6 +360,16 @@ class AdsReturnCode(IntEnum):
     CLIENT_NO_MORE_SYMBOLS = 0x753
     CLIENT_SYNC_RES_INVALID = 0x754
     CLIENT_SYNC_PORT_LOCKED = 0x755
+    SOCKET_CONNECTION_RESET = 0x2746
+    """WSAECONNRESET (10054): the peer dropped the connection."""
+    SOCKET_CONNECTION_TIMEOUT = 0x274C
+    """WSAETIMEDOUT (10060): the TCP connection was not established in time."""
+    SOCKET_CONNECTION_REFUSED = 0x274D
+    """WSAECONNREFUSED (10061): nothing listens on the target's ADS port."""
+    SOCKET_HOST_UNREACHABLE = 0x2751
+    """WSAEHOSTUNREACH (10065): no route to the target host."""
+    SOCKET_HOST_NOT_FOUND = 0x2AF9
+    """WSAHOST_NOT_FOUND (11001): the host name does not resolve."""
 
 
 def describe_return_code(code: int) -> str:

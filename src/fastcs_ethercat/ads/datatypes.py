@@ -12,14 +12,20 @@ padding to the entry length. The extras are kept verbatim.
 from __future__ import annotations
 
 import struct
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Final, Self
 
 from fastcs_ethercat.ads.constants import AdsDataType, AdsReturnCode, DataTypeFlag
 from fastcs_ethercat.ads.errors import AdsCodecError
-from fastcs_ethercat.ads.symbols import data_type_or_int
-from fastcs_ethercat.ads.wire import ByteReader, decode_text, encode_text
+from fastcs_ethercat.ads.wire import (
+    ByteReader,
+    TableEntry,
+    encode_text,
+    enum_or_int,
+    pack,
+    read_c_string,
+)
 
 DATA_TYPE_ENTRY_HEADER_SIZE: Final = 42
 DATA_TYPE_ENTRY_ALIGNMENT: Final = 8
@@ -44,7 +50,7 @@ class ArrayDimension:
 
 
 @dataclass(frozen=True, slots=True)
-class AdsDataTypeEntry:
+class AdsDataTypeEntry(TableEntry):
     """A data type (top level) or a member of one (sub-item).
 
     For a top-level entry `name` is the type's name and `type_name` its base
@@ -75,16 +81,10 @@ class AdsDataTypeEntry:
             encode_text(self.type_name),
             encode_text(self.comment),
         )
-        try:
-            dimensions = b"".join(
-                _DIMENSION.pack(d.lower_bound, d.element_count)
-                for d in self.array_dimensions
-            )
-        except struct.error as error:
-            raise AdsCodecError(
-                f"data type {self.name!r}: array dimension out of range: {error}",
-                AdsReturnCode.DEVICE_INVALID_DATA,
-            ) from error
+        dimensions = b"".join(
+            pack(_DIMENSION, d.lower_bound, d.element_count, what="array dimension")
+            for d in self.array_dimensions
+        )
         body = b"".join(
             (
                 name + b"\0",
@@ -98,39 +98,24 @@ class AdsDataTypeEntry:
         length = DATA_TYPE_ENTRY_HEADER_SIZE + len(body)
         if alignment > 1:
             length = -(-length // alignment) * alignment
-        try:
-            header = _HEADER.pack(
-                length,
-                self.version,
-                self.hash_value,
-                self.type_hash_value,
-                self.size,
-                self.offset,
-                int(self.data_type),
-                int(self.flags),
-                len(name),
-                len(type_name),
-                len(comment),
-                len(self.array_dimensions),
-                len(self.sub_items),
-            )
-        except struct.error as error:
-            raise AdsCodecError(
-                f"data type {self.name!r}: field out of range: {error}",
-                AdsReturnCode.DEVICE_INVALID_DATA,
-            ) from error
+        header = pack(
+            _HEADER,
+            length,
+            self.version,
+            self.hash_value,
+            self.type_hash_value,
+            self.size,
+            self.offset,
+            int(self.data_type),
+            int(self.flags),
+            len(name),
+            len(type_name),
+            len(comment),
+            len(self.array_dimensions),
+            len(self.sub_items),
+            what=f"data type {self.name!r} field",
+        )
         return (header + body).ljust(length, b"\0")
-
-    @classmethod
-    def decode(cls, raw: bytes | bytearray | memoryview) -> Self:
-        """Decode one entry that fills `raw` exactly."""
-        entry, used = cls.decode_at(raw)
-        if used != len(raw):
-            raise AdsCodecError(
-                f"data type entry is {used} bytes, buffer has {len(raw)}",
-                AdsReturnCode.DEVICE_INVALID_SIZE,
-            )
-        return entry
 
     @classmethod
     def decode_at(
@@ -177,9 +162,9 @@ class AdsDataTypeEntry:
             )
         # Bound the reader to this entry so nothing spills into the next one.
         reader = ByteReader(data, what, start=reader.position, end=end)
-        name = _c_string(reader, name_length, "name")
-        type_name = _c_string(reader, type_length, "type name")
-        comment = _c_string(reader, comment_length, "comment")
+        name = read_c_string(reader, name_length, "name")
+        type_name = read_c_string(reader, type_length, "type name")
+        comment = read_c_string(reader, comment_length, "comment")
         dimensions = tuple(
             ArrayDimension(*_DIMENSION.unpack(reader.take(_DIMENSION.size)))
             for _ in range(dimension_count)
@@ -195,7 +180,7 @@ class AdsDataTypeEntry:
             name=name,
             type_name=type_name,
             size=size,
-            data_type=data_type_or_int(data_type),
+            data_type=enum_or_int(AdsDataType, data_type),
             flags=flags,
             offset=member_offset,
             comment=comment,
@@ -212,42 +197,10 @@ class AdsDataTypeEntry:
 _MAX_DEPTH: Final = 32
 
 
-def _c_string(reader: ByteReader, length: int, what: str) -> str:
-    text = reader.take(length)
-    if reader.take(1) != b"\0":
-        raise AdsCodecError(
-            f"{reader.what}: {what} of {length} bytes is not NUL-terminated",
-            AdsReturnCode.DEVICE_INVALID_DATA,
-        )
-    return decode_text(text)
-
-
-def iter_data_type_table(
-    table: bytes | bytearray | memoryview, count: int | None = None
-) -> Iterator[AdsDataTypeEntry]:
-    """Walk a 0xF00E table by entry lengths (stop after `count` if given)."""
-    data = bytes(table)
-    position = 0
-    seen = 0
-    while (count is None and position < len(data)) or (
-        count is not None and seen < count
-    ):
-        entry, used = AdsDataTypeEntry.decode_at(data, position)
-        yield entry
-        position += used
-        seen += 1
-
-
-def decode_data_type_table(
-    table: bytes | bytearray | memoryview, count: int | None = None
-) -> list[AdsDataTypeEntry]:
-    return list(iter_data_type_table(table, count))
-
-
-def encode_data_type_table(
-    entries: Sequence[AdsDataTypeEntry], alignment: int = DATA_TYPE_ENTRY_ALIGNMENT
-) -> bytes:
-    return b"".join(entry.encode(alignment) for entry in entries)
+decode_data_type_table = AdsDataTypeEntry.decode_table
+"""Every entry of a 0xF00E table (`count` of them, from 0xF00F)."""
+encode_data_type_table = AdsDataTypeEntry.encode_table
+"""Entries back to back, as a 0xF00E read returns them."""
 
 
 # -- layouts ----------------------------------------------------------------
@@ -255,11 +208,16 @@ def encode_data_type_table(
 
 @dataclass(frozen=True, slots=True)
 class MemberLayout:
-    """A leaf member of a (nested) type, with its offset from the type start.
+    """A leaf of a (nested) type: where its bytes are from the type's start.
 
-    `path` is dotted from the top type ("Status.Underrange"); TwinCAT reaches
-    it as `<symbol>.<path>`. Members flagged BIT_VALUES count offset and size
-    in bits (`in_bits`); all others in bytes (unconfirmed for real TwinCAT).
+    `path` is dotted from the top type ("Status.Underrange"; "" for a type
+    without members); TwinCAT reaches it as `<symbol>.<path>`. A byte leaf
+    has `offset` and `size` in bytes. A bit field (flag BIT_VALUES) sits in
+    the structure that holds it: `offset` and `size` are that structure's
+    bytes, `bit_offset` and `bit_size` its bits from there. A leaf with
+    `dimensions` is an array of `type_name` elements (a named array type such
+    as `Ch1 Sample 0_TYPE_ARR`); an array member carries its own
+    `ARRAY [a..b] OF T` type name instead.
     """
 
     path: str
@@ -267,24 +225,31 @@ class MemberLayout:
     data_type: AdsDataType | int
     offset: int
     size: int
-    in_bits: bool = False
+    bit_offset: int = 0
+    bit_size: int = 0
+    dimensions: tuple[ArrayDimension, ...] = ()
 
 
-def flatten_members(
+MAX_MEMBER_DEPTH: Final = 8
+"""I/O types nest two or three deep; a type table that nests deeper (or
+refers to itself) is cut there instead of being followed forever."""
+
+
+def walk_members(
     entry: AdsDataTypeEntry,
     types: Mapping[str, AdsDataTypeEntry] | None = None,
 ) -> list[MemberLayout]:
-    """Every leaf member of `entry` with absolute offsets.
+    """Every leaf of `entry`, offsets from its start, in member order.
 
-    A member whose own sub-items are not inlined is resolved through `types`
+    A member whose own sub-items are not inlined is followed through `types`
     (the data-type table by name), as TwinCAT lists each type once.
     """
     found: list[MemberLayout] = []
-    _flatten(entry, types or {}, "", 0, found, 0)
+    _walk(entry, types or {}, "", 0, found, 0)
     return found
 
 
-def _flatten(
+def _walk(
     entry: AdsDataTypeEntry,
     types: Mapping[str, AdsDataTypeEntry],
     prefix: str,
@@ -292,24 +257,44 @@ def _flatten(
     found: list[MemberLayout],
     depth: int,
 ) -> None:
-    if depth > _MAX_DEPTH:
-        raise AdsCodecError(
-            f"type {entry.name!r} nests deeper than {_MAX_DEPTH} (recursive?)",
-            AdsReturnCode.DEVICE_INVALID_DATA,
+    if depth > MAX_MEMBER_DEPTH:
+        return
+    if not entry.sub_items:
+        found.append(
+            MemberLayout(
+                prefix.rstrip("."),
+                entry.type_name,
+                entry.data_type,
+                base,
+                entry.size,
+                dimensions=entry.array_dimensions,
+            )
         )
+        return
     for item in entry.sub_items:
         path = f"{prefix}{item.name}"
-        in_bits = bool(item.flags & DataTypeFlag.BIT_VALUES)
-        offset = base * (8 if in_bits else 1) + item.offset
-        nested = item if item.sub_items else types.get(item.type_name)
-        if nested is not None and nested.sub_items and not in_bits:
-            _flatten(nested, types, f"{path}.", offset, found, depth + 1)
-        else:
+        if item.flags & DataTypeFlag.BIT_VALUES:
             found.append(
                 MemberLayout(
-                    path, item.type_name, item.data_type, offset, item.size, in_bits
+                    path,
+                    item.type_name,
+                    item.data_type,
+                    base,
+                    max(entry.size, 1),
+                    bit_offset=item.offset,
+                    bit_size=item.size,
                 )
             )
+            continue
+        nested = item if item.sub_items else types.get(item.type_name)
+        if nested is not None and (nested.sub_items or nested.array_dimensions):
+            _walk(nested, types, f"{path}.", base + item.offset, found, depth + 1)
+            continue
+        found.append(
+            MemberLayout(
+                path, item.type_name, item.data_type, base + item.offset, item.size
+            )
+        )
 
 
 @dataclass(frozen=True, slots=True)

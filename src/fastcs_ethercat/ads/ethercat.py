@@ -7,7 +7,8 @@ offset 5 the device's NetId, offset 7 device type u16.
 EtherCAT master (device NetId, port 0xFFFF): 0x03/0x100 master state u16,
 0x06 slave count u16, 0x07 slave addresses u16 x n, 0x09 (AL state u8, link
 state u8) per slave, 0x0C frame counters 5 x u32, 0x11 identity 4 x u32,
-0x12 CRC counters (4 x u32, one per port, offset = slave address).
+0x12 CRC counters (offset = slave address: 4 x u32, one per port; offset 0:
+one u32 per slave, its ports added).
 """
 
 from __future__ import annotations
@@ -21,7 +22,14 @@ from typing import Final, Self
 from fastcs_ethercat.ads.constants import AdsReturnCode
 from fastcs_ethercat.ads.errors import AdsCodecError
 from fastcs_ethercat.ads.netid import AmsNetId
-from fastcs_ethercat.ads.wire import ByteReader, decode_c_string, encode_text
+from fastcs_ethercat.ads.wire import (
+    ByteReader,
+    FixedRecord,
+    decode_c_string,
+    encode_text,
+    exactly,
+    pack,
+)
 
 DEVICE_NAME_MAX: Final = 255
 
@@ -59,23 +67,6 @@ class LinkState(IntFlag):
     PORT_D = 0x80
 
 
-def _pack(fmt: str, *values: int) -> bytes:
-    try:
-        return struct.pack(fmt, *values)
-    except struct.error as error:
-        raise AdsCodecError(
-            f"EtherCAT field out of range: {error}", AdsReturnCode.DEVICE_INVALID_DATA
-        ) from error
-
-
-def _exact(raw: bytes | bytearray | memoryview, size: int, what: str) -> ByteReader:
-    if len(raw) != size:
-        raise AdsCodecError(
-            f"{what} is {size} bytes, got {len(raw)}", AdsReturnCode.DEVICE_INVALID_SIZE
-        )
-    return ByteReader(raw, what)
-
-
 def _u16_array(raw: bytes | bytearray | memoryview, what: str) -> tuple[int, ...]:
     if len(raw) % 2:
         raise AdsCodecError(
@@ -90,16 +81,16 @@ def _u16_array(raw: bytes | bytearray | memoryview, what: str) -> tuple[int, ...
 
 
 def encode_device_count(count: int) -> bytes:
-    return _pack("<I", count)
+    return pack("<I", count)
 
 
 def decode_device_count(raw: bytes | bytearray | memoryview) -> int:
-    return _exact(raw, 4, "device count").u32()
+    return exactly(raw, 4, "device count").u32()
 
 
 def encode_device_ids(device_ids: Sequence[int]) -> bytes:
     """u16 count, then one u16 id per device."""
-    return _pack(f"<H{len(device_ids)}H", len(device_ids), *device_ids)
+    return pack(f"<H{len(device_ids)}H", len(device_ids), *device_ids)
 
 
 def decode_device_ids(raw: bytes | bytearray | memoryview) -> tuple[int, ...]:
@@ -135,34 +126,34 @@ def decode_device_netid(raw: bytes | bytearray | memoryview) -> AmsNetId:
 
 
 def encode_device_type(device_type: int) -> bytes:
-    return _pack("<H", device_type)
+    return pack("<H", device_type)
 
 
 def decode_device_type(raw: bytes | bytearray | memoryview) -> int:
-    return _exact(raw, 2, "device type").u16()
+    return exactly(raw, 2, "device type").u16()
 
 
 # -- EtherCAT master --------------------------------------------------------
 
 
 def encode_master_state(state: int) -> bytes:
-    return _pack("<H", state)
+    return pack("<H", state)
 
 
 def decode_master_state(raw: bytes | bytearray | memoryview) -> int:
-    return _exact(raw, 2, "master state").u16()
+    return exactly(raw, 2, "master state").u16()
 
 
 def encode_slave_count(count: int) -> bytes:
-    return _pack("<H", count)
+    return pack("<H", count)
 
 
 def decode_slave_count(raw: bytes | bytearray | memoryview) -> int:
-    return _exact(raw, 2, "slave count").u16()
+    return exactly(raw, 2, "slave count").u16()
 
 
 def encode_slave_addresses(addresses: Sequence[int]) -> bytes:
-    return _pack(f"<{len(addresses)}H", *addresses)
+    return pack(f"<{len(addresses)}H", *addresses)
 
 
 def decode_slave_addresses(raw: bytes | bytearray | memoryview) -> tuple[int, ...]:
@@ -170,9 +161,10 @@ def decode_slave_addresses(raw: bytes | bytearray | memoryview) -> tuple[int, ..
 
 
 @dataclass(frozen=True, slots=True)
-class SlaveState:
+class SlaveState(FixedRecord):
     """A slave's raw state byte and link-state byte."""
 
+    layout = struct.Struct("<BB")
     state: int
     link: int = 0
 
@@ -201,14 +193,6 @@ class SlaveState:
     def link_state(self) -> LinkState:
         return LinkState(self.link)
 
-    def encode(self) -> bytes:
-        return _pack("<BB", self.state, self.link)
-
-    @classmethod
-    def decode(cls, raw: bytes | bytearray | memoryview) -> Self:
-        reader = _exact(raw, 2, "slave state")
-        return cls(reader.u8(), reader.u8())
-
 
 def encode_slave_states(states: Sequence[SlaveState]) -> bytes:
     """Group 0x09 offset 0: one (state, link) pair per slave, in chain order."""
@@ -225,72 +209,59 @@ def decode_slave_states(raw: bytes | bytearray | memoryview) -> tuple[SlaveState
 
 
 @dataclass(frozen=True, slots=True)
-class SlaveIdentity:
+class SlaveIdentity(FixedRecord):
     """CANopen identity (object 0x1018) of a slave: 4 x u32."""
 
+    layout = struct.Struct("<4I")
     vendor_id: int
     product_code: int
     revision: int
     serial_number: int = 0
 
-    def encode(self) -> bytes:
-        return _pack(
-            "<IIII",
-            self.vendor_id,
-            self.product_code,
-            self.revision,
-            self.serial_number,
-        )
-
-    @classmethod
-    def decode(cls, raw: bytes | bytearray | memoryview) -> Self:
-        reader = _exact(raw, 16, "slave identity")
-        return cls(reader.u32(), reader.u32(), reader.u32(), reader.u32())
-
 
 @dataclass(frozen=True, slots=True)
-class FrameCounters:
+class FrameCounters(FixedRecord):
     """Group 0x0C: five u32 counters of the master's frames.
 
     Field meanings follow catio's reading (a time base, then cyclic and
     acyclic frames sent and lost) and are unconfirmed.
     """
 
+    layout = struct.Struct("<5I")
     time: int = 0
     cyclic_sent: int = 0
     cyclic_lost: int = 0
     acyclic_sent: int = 0
     acyclic_lost: int = 0
 
-    def encode(self) -> bytes:
-        return _pack(
-            "<5I",
-            self.time,
-            self.cyclic_sent,
-            self.cyclic_lost,
-            self.acyclic_sent,
-            self.acyclic_lost,
-        )
-
-    @classmethod
-    def decode(cls, raw: bytes | bytearray | memoryview) -> Self:
-        reader = _exact(raw, 20, "frame counters")
-        return cls(*(reader.u32() for _ in range(5)))
-
 
 @dataclass(frozen=True, slots=True)
-class CrcCounters:
-    """Group 0x12 (offset = slave address): CRC error counters per port."""
+class CrcCounters(FixedRecord):
+    """Group 0x12, offset = slave address: CRC error counters per port."""
 
+    layout = struct.Struct("<4I")
     port_a: int = 0
     port_b: int = 0
     port_c: int = 0
     port_d: int = 0
 
-    def encode(self) -> bytes:
-        return _pack("<4I", self.port_a, self.port_b, self.port_c, self.port_d)
+    @property
+    def total(self) -> int:
+        """The four ports added, as group 0x12 offset 0 reports each slave."""
+        return (self.port_a + self.port_b + self.port_c + self.port_d) & 0xFFFF_FFFF
 
-    @classmethod
-    def decode(cls, raw: bytes | bytearray | memoryview) -> Self:
-        reader = _exact(raw, 16, "CRC counters")
-        return cls(*(reader.u32() for _ in range(4)))
+
+def encode_crc_totals(totals: Sequence[int]) -> bytes:
+    """Group 0x12 offset 0: per slave in bus order, its ports' CRC error
+    counters added, u32 each (Beckhoff FB_EcGetAllSlaveCrcErrors)."""
+    return pack(f"<{len(totals)}I", *totals)
+
+
+def decode_crc_totals(raw: bytes | bytearray | memoryview) -> tuple[int, ...]:
+    if len(raw) % 4:
+        raise AdsCodecError(
+            f"CRC totals: length {len(raw)} is not a multiple of 4",
+            AdsReturnCode.DEVICE_INVALID_SIZE,
+        )
+    reader = ByteReader(raw, "CRC totals")
+    return tuple(reader.u32() for _ in range(len(raw) // 4))

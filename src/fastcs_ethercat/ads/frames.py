@@ -25,6 +25,7 @@ from fastcs_ethercat.ads.constants import (
 )
 from fastcs_ethercat.ads.errors import AdsCodecError
 from fastcs_ethercat.ads.netid import AmsAddress, AmsNetId
+from fastcs_ethercat.ads.wire import enum_or_int, pack
 
 _TCP_HEADER: Final = struct.Struct("<HI")
 _AMS_HEADER: Final = struct.Struct("<6sH6sHHHIII")
@@ -33,12 +34,8 @@ DEFAULT_MAX_FRAME_SIZE: Final = 16 * 1024 * 1024
 """Largest AMS/TCP length a reassembler accepts unless told otherwise."""
 
 
-def command_or_int(command_id: int) -> AmsCommand | int:
-    """The AmsCommand for a known id, the bare int for an unknown one."""
-    try:
-        return AmsCommand(command_id)
-    except ValueError:
-        return command_id
+class FrameTooLargeError(AdsCodecError):
+    """An AMS/TCP length beyond the reassembler's maximum frame size."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -80,23 +77,19 @@ class AmsPacket:
 
 def encode_ams_header(packet: AmsPacket) -> bytes:
     """The 32-byte AMS header of `packet` (data length from its payload)."""
-    try:
-        return _AMS_HEADER.pack(
-            packet.target.netid.to_bytes(),
-            packet.target.port,
-            packet.source.netid.to_bytes(),
-            packet.source.port,
-            int(packet.command),
-            int(packet.state_flags),
-            len(packet.payload),
-            int(packet.error_code),
-            int(packet.invoke_id),
-        )
-    except struct.error as error:
-        raise AdsCodecError(
-            f"AMS header field out of range: {error}",
-            AdsReturnCode.DEVICE_INVALID_DATA,
-        ) from error
+    return pack(
+        _AMS_HEADER,
+        packet.target.netid.to_bytes(),
+        packet.target.port,
+        packet.source.netid.to_bytes(),
+        packet.source.port,
+        int(packet.command),
+        int(packet.state_flags),
+        len(packet.payload),
+        int(packet.error_code),
+        int(packet.invoke_id),
+        what="AMS header field",
+    )
 
 
 def encode_packet(packet: AmsPacket) -> bytes:
@@ -133,7 +126,7 @@ def decode_ams(data: bytes | bytearray | memoryview) -> AmsPacket:
     return AmsPacket(
         target=AmsAddress(AmsNetId.from_bytes(target_netid), target_port),
         source=AmsAddress(AmsNetId.from_bytes(source_netid), source_port),
-        command=command_or_int(command_id),
+        command=enum_or_int(AmsCommand, command_id),
         state_flags=state_flags,
         error_code=error_code,
         invoke_id=invoke_id,
@@ -204,33 +197,70 @@ class FrameReassembler:
         """Bytes received but not yet part of a complete frame."""
         return len(self._buffer)
 
+    @property
+    def broken(self) -> AdsCodecError | None:
+        """Why the stream lost its framing, once it has."""
+        return self._broken
+
     def feed(self, data: bytes | bytearray | memoryview) -> list[AmsPacket]:
-        """Add received bytes; return the packets they complete, in order."""
+        """Add received bytes; return the packets they complete, in order.
+
+        Raises `AdsCodecError` when the framing breaks or a frame's AMS
+        header disagrees with its AMS/TCP length (a server closes such a
+        client); `split` leaves the AMS header to the caller.
+        """
+        frames = self.split(data)
+        if self._broken is not None:
+            raise self._broken
+        try:
+            return [decode_ams(frame) for frame in frames]
+        except AdsCodecError as error:
+            self._broken = error
+            raise
+
+    def split(self, data: bytes | bytearray | memoryview) -> list[bytes]:
+        """Add received bytes; return the AMS bodies (AMS header + data) of
+        every frame they complete, in order, each checked only against its
+        AMS/TCP header (reserved field, length bounds).
+
+        Where the framing breaks, the frames before the break are returned
+        and `broken` tells why; the stream is then lost (a further call
+        raises `AdsCodecError`).
+        """
         if self._broken is not None:
             raise AdsCodecError(
                 f"stream already broken: {self._broken}", self._broken.return_code
             )
         self._buffer += data
-        packets: list[AmsPacket] = []
+        frames: list[bytes] = []
         start = 0
+        buffer = self._buffer
         try:
-            while len(self._buffer) - start >= AMS_TCP_HEADER_SIZE:
+            while len(buffer) - start >= AMS_TCP_HEADER_SIZE:
                 header_end = start + AMS_TCP_HEADER_SIZE
-                length = decode_tcp_header(self._buffer[start:header_end])
+                length = decode_tcp_header(buffer[start:header_end])
                 if length > self.max_frame_size:
-                    raise AdsCodecError(
+                    raise FrameTooLargeError(
                         f"AMS/TCP frame of {length} bytes exceeds the limit of "
                         f"{self.max_frame_size}",
                         AdsReturnCode.INVALID_AMS_LENGTH,
                     )
                 frame_end = header_end + length
-                if len(self._buffer) < frame_end:
+                if len(buffer) < frame_end:
                     break
-                packets.append(decode_ams(self._buffer[header_end:frame_end]))
+                frames.append(bytes(buffer[header_end:frame_end]))
                 start = frame_end
         except AdsCodecError as error:
             self._broken = error
-            self._buffer.clear()
-            raise
-        del self._buffer[:start]
-        return packets
+            buffer.clear()
+            return frames
+        del buffer[:start]
+        return frames
+
+
+def header_invoke_id(body: bytes | bytearray | memoryview) -> int | None:
+    """The invoke id of an AMS body whose header is whole, else None (read
+    even when the rest of the frame is malformed, to fail its request)."""
+    if len(body) < AMS_HEADER_SIZE:
+        return None
+    return int(_AMS_HEADER.unpack_from(body)[-1])

@@ -8,6 +8,7 @@ from typing import Final, Self
 
 from fastcs_ethercat.ads.constants import AdsReturnCode
 from fastcs_ethercat.ads.errors import AdsCodecError
+from fastcs_ethercat.ads.wire import exactly
 
 NETID_SIZE: Final = 6
 AMS_ADDRESS_SIZE: Final = 8
@@ -46,12 +47,10 @@ class AmsNetId:
     @classmethod
     def from_bytes(cls, raw: bytes | bytearray | memoryview) -> Self:
         """Decode the six wire bytes of a NetId."""
-        if len(raw) != NETID_SIZE:
-            raise AdsCodecError(
-                f"an AMS NetId is {NETID_SIZE} bytes, got {len(raw)}",
-                AdsReturnCode.INVALID_AMS_NETID,
-            )
-        a, b, c, d, e, f = bytes(raw)
+        reader = exactly(
+            raw, NETID_SIZE, "an AMS NetId", AdsReturnCode.INVALID_AMS_NETID
+        )
+        a, b, c, d, e, f = reader.rest()
         return cls((a, b, c, d, e, f))
 
     @classmethod
@@ -101,13 +100,10 @@ class AmsAddress:
     @classmethod
     def from_bytes(cls, raw: bytes | bytearray | memoryview) -> Self:
         """Decode NetId (6 bytes) + port (u16), as in the AMS header."""
-        if len(raw) != AMS_ADDRESS_SIZE:
-            raise AdsCodecError(
-                f"an AMS address is {AMS_ADDRESS_SIZE} bytes, got {len(raw)}",
-                AdsReturnCode.INVALID_AMS_NETID,
-            )
-        netid, port = _ADDRESS.unpack(bytes(raw))
-        return cls(AmsNetId.from_bytes(netid), port)
+        reader = exactly(
+            raw, AMS_ADDRESS_SIZE, "an AMS address", AdsReturnCode.INVALID_AMS_NETID
+        )
+        return cls(AmsNetId.from_bytes(reader.take(NETID_SIZE)), reader.u16())
 
     def to_bytes(self) -> bytes:
         return _ADDRESS.pack(self.netid.to_bytes(), self.port)

@@ -20,10 +20,12 @@ Beckhoff recommends at most MAX_SUM_SUB_COMMANDS (500) items per request.
 
 from __future__ import annotations
 
+import itertools
+import operator
 import struct
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
-from typing import Final, Self, TypeVar
+from typing import Any, Final, Self, TypeVar
 
 import numpy as np
 import numpy.typing as npt
@@ -38,9 +40,11 @@ from fastcs_ethercat.ads.constants import (
     IndexGroup,
 )
 from fastcs_ethercat.ads.errors import AdsCodecError
-from fastcs_ethercat.ads.wire import ByteReader
+from fastcs_ethercat.ads.values import structured_dtype
+from fastcs_ethercat.ads.wire import ByteReader, pack
 
 _ADD_NOTIFICATION_SIZE: Final = 40
+_ITEM_FIELDS: Final = operator.attrgetter("index_group", "index_offset", "length")
 _T = TypeVar("_T")
 
 __all__ = [
@@ -50,6 +54,7 @@ __all__ = [
     "SumDeleteNotificationsRequest",
     "SumDeleteNotificationsResponse",
     "SumReadItem",
+    "SumReadLayout",
     "SumReadRequest",
     "SumReadResponse",
     "SumReadWriteItem",
@@ -59,8 +64,6 @@ __all__ = [
     "SumWriteRequest",
     "SumWriteResponse",
     "chunked",
-    "sum_read_data_offsets",
-    "sum_read_results",
 ]
 
 
@@ -70,16 +73,6 @@ def chunked(
     """Split a list of sub-requests into sum requests of at most `size`."""
     for start in range(0, len(items), size):
         yield items[start : start + size]
-
-
-def _pack(fmt: str, *values: int) -> bytes:
-    try:
-        return struct.pack(fmt, *values)
-    except struct.error as error:
-        raise AdsCodecError(
-            f"sum command field out of range: {error}",
-            AdsReturnCode.DEVICE_INVALID_DATA,
-        ) from error
 
 
 def _need(raw_length: int, needed: int, what: str) -> None:
@@ -105,6 +98,83 @@ class SumReadItem:
     length: int
 
 
+class SumReadLayout:
+    """Where everything sits in a 0xF080 answer: n results (u32) first, then
+    every item's data at its requested length, back to back (zeros for an
+    item that failed). The one description of it, for the client that views
+    answers with numpy and the simulator that builds them."""
+
+    __slots__ = ("data_offsets", "lengths", "size")
+
+    def __init__(self, lengths: Sequence[int]) -> None:
+        self.lengths = tuple(lengths)
+        count = len(self.lengths)
+        offsets = np.empty(count, dtype=np.intp)
+        if count:
+            offsets[0] = 4 * count
+            np.cumsum(np.asarray(self.lengths[:-1], dtype=np.intp), out=offsets[1:])
+            offsets[1:] += offsets[0]
+        self.data_offsets: npt.NDArray[np.intp] = offsets
+        """Byte offset of each item's data within the answer."""
+        self.size = 4 * count + sum(self.lengths)
+        """Bytes of the whole answer."""
+
+    @classmethod
+    def of(cls, items: Sequence[SumReadItem]) -> SumReadLayout:
+        return cls([item.length for item in items])
+
+    @property
+    def count(self) -> int:
+        return len(self.lengths)
+
+    def dtype(self, fields: Sequence[tuple[str, Any, int]]) -> np.dtype[Any]:
+        """A structured dtype of the whole answer: field `results` (the n
+        results) plus (name, dtype, byte offset in the answer) fields, so one
+        `np.frombuffer` views a whole answer."""
+        results = ("results", np.dtype(("<u4", (self.count,))), 0)
+        return structured_dtype([results, *fields], self.size)
+
+    def split(
+        self, answer: bytes | bytearray | memoryview
+    ) -> tuple[tuple[int, ...], tuple[bytes, ...]]:
+        """(results, data per item) of an answer of exactly `size` bytes."""
+        if len(answer) != self.size:
+            raise AdsCodecError(
+                f"sum read answer of {self.count} items is {len(answer)} bytes, "
+                f"expected {self.size}",
+                AdsReturnCode.DEVICE_INVALID_SIZE,
+            )
+        data = bytes(answer)
+        results = struct.unpack_from(f"<{self.count}I", data)
+        return results, tuple(
+            data[start : start + length]
+            for start, length in zip(
+                self.data_offsets.tolist(), self.lengths, strict=True
+            )
+        )
+
+    def encode(self, results: Sequence[int], data: Sequence[bytes]) -> bytes:
+        """The answer: results, then each item's data zero-padded to its
+        length (a failed item's data is not sent); longer data is an error."""
+        if len(results) != self.count or len(data) != self.count:
+            raise AdsCodecError(
+                f"{self.count} sum read items, {len(results)} results and "
+                f"{len(data)} data blocks",
+                AdsReturnCode.DEVICE_INVALID_SIZE,
+            )
+        blocks: list[bytes] = []
+        for result, value, length in zip(results, data, self.lengths, strict=True):
+            if result != AdsReturnCode.NO_ERROR:
+                value = b""
+            if len(value) > length:
+                raise AdsCodecError(
+                    f"sum read item wants {length} bytes, got {len(value)}",
+                    AdsReturnCode.DEVICE_INVALID_SIZE,
+                )
+            blocks.append(bytes(value).ljust(length, b"\0"))
+        return pack(f"<{self.count}I", *results) + b"".join(blocks)
+
+
 @dataclass(frozen=True, slots=True)
 class SumReadRequest:
     """The write data of a 0xF080 ReadWrite (n x 12 bytes)."""
@@ -117,9 +187,9 @@ class SumReadRequest:
         return 4 * len(self.items) + sum(item.length for item in self.items)
 
     def encode(self) -> bytes:
-        return b"".join(
-            _pack("<III", i.index_group, i.index_offset, i.length) for i in self.items
-        )
+        # One C-level pack: this runs for every request of every poll cycle.
+        values = itertools.chain.from_iterable(map(_ITEM_FIELDS, self.items))
+        return pack(f"<{3 * len(self.items)}I", *values, what="sum read item")
 
     def to_read_write(self) -> ReadWriteRequest:
         return ReadWriteRequest(
@@ -151,60 +221,23 @@ class SumReadResponse:
     ) -> Self:
         """Build the answer from (result, data) per item: failed items get
         zeros, short data is zero-padded, long data is an error."""
-        if len(items) != len(outcomes):
-            raise AdsCodecError(
-                f"{len(items)} sum read items but {len(outcomes)} outcomes",
-                AdsReturnCode.DEVICE_INVALID_SIZE,
-            )
-        data: list[bytes] = []
-        for item, (result, value) in zip(items, outcomes, strict=True):
-            if result != AdsReturnCode.NO_ERROR:
-                value = b""
-            if len(value) > item.length:
-                raise AdsCodecError(
-                    f"sum read item wants {item.length} bytes, got {len(value)}",
-                    AdsReturnCode.DEVICE_INVALID_SIZE,
-                )
-            data.append(bytes(value).ljust(item.length, b"\0"))
-        return cls(tuple(result for result, _ in outcomes), tuple(data))
+        layout = SumReadLayout.of(items)
+        answer = layout.encode(
+            [result for result, _ in outcomes], [value for _, value in outcomes]
+        )
+        return cls(*layout.split(answer))
 
     def encode(self) -> bytes:
-        if len(self.results) != len(self.data):
-            raise AdsCodecError(
-                "sum read response needs one data block per result",
-                AdsReturnCode.DEVICE_INVALID_SIZE,
-            )
-        return _pack(f"<{len(self.results)}I", *self.results) + b"".join(self.data)
+        return SumReadLayout([len(d) for d in self.data]).encode(
+            self.results, self.data
+        )
 
     @classmethod
     def decode(
         cls, raw: bytes | bytearray | memoryview, lengths: Sequence[int]
     ) -> Self:
         """Decode with the requested lengths (the client knows them)."""
-        reader = ByteReader(raw, "sum read response")
-        results = _results(reader, len(lengths))
-        _need(reader.remaining, sum(lengths), reader.what)
-        data = tuple(reader.take(length) for length in lengths)
-        reader.expect_end()
-        return cls(results, data)
-
-
-def sum_read_results(
-    raw: bytes | bytearray | memoryview, count: int
-) -> npt.NDArray[np.uint32]:
-    """The n results of a sum read answer as one array (hot path, no copy)."""
-    _need(len(raw), 4 * count, "sum read response")
-    return np.frombuffer(raw, dtype="<u4", count=count)
-
-
-def sum_read_data_offsets(lengths: Sequence[int]) -> npt.NDArray[np.int64]:
-    """Byte offset of each item's data within a sum read answer."""
-    offsets = np.empty(len(lengths), dtype=np.int64)
-    if len(lengths):
-        offsets[0] = 4 * len(lengths)
-        np.cumsum(np.asarray(lengths[:-1], dtype=np.int64), out=offsets[1:])
-        offsets[1:] += offsets[0]
-    return offsets
+        return cls(*SumReadLayout(lengths).split(raw))
 
 
 # -- 0xF081 sum write -------------------------------------------------------
@@ -229,8 +262,7 @@ class SumWriteRequest:
 
     def encode(self) -> bytes:
         headers = b"".join(
-            _pack("<III", i.index_group, i.index_offset, len(i.data))
-            for i in self.items
+            pack("<III", i.index_group, i.index_offset, len(i.data)) for i in self.items
         )
         return headers + b"".join(bytes(i.data) for i in self.items)
 
@@ -258,7 +290,7 @@ class SumWriteResponse:
     results: tuple[int, ...]
 
     def encode(self) -> bytes:
-        return _pack(f"<{len(self.results)}I", *self.results)
+        return pack(f"<{len(self.results)}I", *self.results)
 
     @classmethod
     def decode(cls, raw: bytes | bytearray | memoryview, count: int) -> Self:
@@ -292,7 +324,7 @@ class SumReadWriteRequest:
 
     def encode(self) -> bytes:
         headers = b"".join(
-            _pack("<IIII", i.index_group, i.index_offset, i.read_length, len(i.data))
+            pack("<IIII", i.index_group, i.index_offset, i.read_length, len(i.data))
             for i in self.items
         )
         return headers + b"".join(bytes(i.data) for i in self.items)
@@ -336,7 +368,7 @@ class SumReadWriteResponse:
                 AdsReturnCode.DEVICE_INVALID_SIZE,
             )
         headers = b"".join(
-            _pack("<II", result, len(data))
+            pack("<II", result, len(data))
             for result, data in zip(self.results, self.data, strict=True)
         )
         return headers + b"".join(bytes(d) for d in self.data)
@@ -404,7 +436,7 @@ class SumAddNotificationsResponse:
                 "one handle per result", AdsReturnCode.DEVICE_INVALID_SIZE
             )
         return b"".join(
-            _pack("<II", r, h) for r, h in zip(self.results, self.handles, strict=True)
+            pack("<II", r, h) for r, h in zip(self.results, self.handles, strict=True)
         )
 
     @classmethod
@@ -425,7 +457,7 @@ class SumDeleteNotificationsRequest:
         return 4 * len(self.handles)
 
     def encode(self) -> bytes:
-        return _pack(f"<{len(self.handles)}I", *self.handles)
+        return pack(f"<{len(self.handles)}I", *self.handles)
 
     def to_read_write(self) -> ReadWriteRequest:
         return ReadWriteRequest(
@@ -448,7 +480,7 @@ class SumDeleteNotificationsResponse:
     results: tuple[int, ...]
 
     def encode(self) -> bytes:
-        return _pack(f"<{len(self.results)}I", *self.results)
+        return pack(f"<{len(self.results)}I", *self.results)
 
     @classmethod
     def decode(cls, raw: bytes | bytearray | memoryview, count: int) -> Self:

@@ -12,13 +12,21 @@ length. Strings are Windows-1252, as TwinCAT writes them.
 from __future__ import annotations
 
 import struct
-from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Final, Self
 
 from fastcs_ethercat.ads.constants import AdsDataType, AdsReturnCode
 from fastcs_ethercat.ads.errors import AdsCodecError
-from fastcs_ethercat.ads.wire import ByteReader, decode_text, encode_text
+from fastcs_ethercat.ads.wire import (
+    ByteReader,
+    FixedRecord,
+    TableEntry,
+    decode_text,
+    encode_text,
+    enum_or_int,
+    pack,
+    read_c_string,
+)
 
 SYMBOL_ENTRY_HEADER_SIZE: Final = 30
 SYMBOL_ENTRY_ALIGNMENT: Final = 8
@@ -27,24 +35,14 @@ real TwinCAT 3 entry of 68 bytes + a 16-byte type GUID with entry length 88
 (84 rounded up to 8). Readers rely only on the entry length, as pyads does."""
 
 _HEADER: Final = struct.Struct("<IIIIIIHHH")
-_UPLOAD_INFO: Final = struct.Struct("<II")
-_UPLOAD_INFO_2: Final = struct.Struct("<IIIIII")
 
 
 def _padded(length: int, alignment: int) -> int:
     return -(-length // alignment) * alignment if alignment > 1 else length
 
 
-def data_type_or_int(value: int) -> AdsDataType | int:
-    """The AdsDataType for a known id, the bare int otherwise."""
-    try:
-        return AdsDataType(value)
-    except ValueError:
-        return value
-
-
 @dataclass(frozen=True, slots=True)
-class AdsSymbolEntry:
+class AdsSymbolEntry(TableEntry):
     """One symbol: where it lives (group, offset), its size and its type."""
 
     name: str
@@ -68,35 +66,20 @@ class AdsSymbolEntry:
         )
         body = name + b"\0" + type_name + b"\0" + comment + b"\0" + bytes(self.extra)
         length = _padded(SYMBOL_ENTRY_HEADER_SIZE + len(body), alignment)
-        try:
-            header = _HEADER.pack(
-                length,
-                self.index_group,
-                self.index_offset,
-                self.size,
-                int(self.data_type),
-                self.flags,
-                len(name),
-                len(type_name),
-                len(comment),
-            )
-        except struct.error as error:
-            raise AdsCodecError(
-                f"symbol {self.name!r}: field out of range: {error}",
-                AdsReturnCode.DEVICE_INVALID_DATA,
-            ) from error
+        header = pack(
+            _HEADER,
+            length,
+            self.index_group,
+            self.index_offset,
+            self.size,
+            int(self.data_type),
+            self.flags,
+            len(name),
+            len(type_name),
+            len(comment),
+            what=f"symbol {self.name!r} field",
+        )
         return (header + body).ljust(length, b"\0")
-
-    @classmethod
-    def decode(cls, raw: bytes | bytearray | memoryview) -> Self:
-        """Decode one entry that fills `raw` exactly (e.g. a 0xF009 answer)."""
-        entry, used = cls.decode_at(raw)
-        if used != len(raw):
-            raise AdsCodecError(
-                f"symbol entry is {used} bytes, buffer has {len(raw)}",
-                AdsReturnCode.DEVICE_INVALID_SIZE,
-            )
-        return entry
 
     @classmethod
     def decode_at(
@@ -132,16 +115,16 @@ class AdsSymbolEntry:
                 f"runs past the end of the buffer ({len(data) - offset} bytes left)",
                 AdsReturnCode.DEVICE_INVALID_SIZE,
             )
-        name = _c_string(reader, name_length, "name")
-        type_name = _c_string(reader, type_length, "type name")
-        comment = _c_string(reader, comment_length, "comment")
+        name = read_c_string(reader, name_length, "name")
+        type_name = read_c_string(reader, type_length, "type name")
+        comment = read_c_string(reader, comment_length, "comment")
         extra = reader.take(entry_length - strings_end)
         entry = cls(
             name=name,
             index_group=index_group,
             index_offset=index_offset,
             size=size,
-            data_type=data_type_or_int(data_type),
+            data_type=enum_or_int(AdsDataType, data_type),
             type_name=type_name,
             comment=comment,
             flags=flags,
@@ -157,73 +140,26 @@ def decode_symbol_entry(
     return AdsSymbolEntry.decode_at(raw, offset)
 
 
-def _c_string(reader: ByteReader, length: int, what: str) -> str:
-    """A string of known length that must be followed by its NUL."""
-    text = reader.take(length)
-    if reader.take(1) != b"\0":
-        raise AdsCodecError(
-            f"{reader.what}: {what} of {length} bytes is not NUL-terminated",
-            AdsReturnCode.DEVICE_INVALID_DATA,
-        )
-    return decode_text(text)
-
-
-def iter_symbol_table(
-    table: bytes | bytearray | memoryview, count: int | None = None
-) -> Iterator[AdsSymbolEntry]:
-    """Walk an upload table entry by entry, by each entry's length.
-
-    With `count` (from 0xF00F), stop after that many entries, as pyads does;
-    without it, walk to the end of the buffer.
-    """
-    data = bytes(table)
-    position = 0
-    seen = 0
-    while (count is None and position < len(data)) or (
-        count is not None and seen < count
-    ):
-        entry, used = decode_symbol_entry(data, position)
-        yield entry
-        position += used
-        seen += 1
-
-
-def decode_symbol_table(
-    table: bytes | bytearray | memoryview, count: int | None = None
-) -> list[AdsSymbolEntry]:
-    """All entries of an upload table (see `iter_symbol_table`)."""
-    return list(iter_symbol_table(table, count))
-
-
-def encode_symbol_table(
-    entries: list[AdsSymbolEntry], alignment: int = SYMBOL_ENTRY_ALIGNMENT
-) -> bytes:
-    """Entries back to back, as a 0xF00B read returns them."""
-    return b"".join(entry.encode(alignment) for entry in entries)
+decode_symbol_table = AdsSymbolEntry.decode_table
+"""Every entry of a 0xF00B table (`count` of them, from 0xF00F)."""
+encode_symbol_table = AdsSymbolEntry.encode_table
+"""Entries back to back, as a 0xF00B read returns them."""
 
 
 @dataclass(frozen=True, slots=True)
-class SymbolUploadInfo:
+class SymbolUploadInfo(FixedRecord):
     """0xF00C answer: symbol count and symbol table length (8 bytes)."""
 
+    layout = struct.Struct("<II")
     symbol_count: int
     symbol_table_size: int
 
-    def encode(self) -> bytes:
-        return _UPLOAD_INFO.pack(self.symbol_count, self.symbol_table_size)
-
-    @classmethod
-    def decode(cls, raw: bytes | bytearray | memoryview) -> Self:
-        reader = ByteReader(raw, "symbol upload info")
-        info = cls(reader.u32(), reader.u32())
-        reader.expect_end()
-        return info
-
 
 @dataclass(frozen=True, slots=True)
-class SymbolUploadInfo2:
+class SymbolUploadInfo2(FixedRecord):
     """0xF00F answer: six u32 (24 bytes) describing both upload tables."""
 
+    layout = struct.Struct("<6I")
     symbol_count: int
     symbol_table_size: int
     data_type_count: int = 0
@@ -231,27 +167,11 @@ class SymbolUploadInfo2:
     max_dynamic_symbols: int = 0
     used_dynamic_symbols: int = 0
 
-    def encode(self) -> bytes:
-        try:
-            return _UPLOAD_INFO_2.pack(
-                self.symbol_count,
-                self.symbol_table_size,
-                self.data_type_count,
-                self.data_type_table_size,
-                self.max_dynamic_symbols,
-                self.used_dynamic_symbols,
-            )
-        except struct.error as error:
-            raise AdsCodecError(
-                f"upload info field out of range: {error}",
-                AdsReturnCode.DEVICE_INVALID_DATA,
-            ) from error
-
     @classmethod
     def decode(cls, raw: bytes | bytearray | memoryview) -> Self:
         """Decode 24 bytes; a longer buffer (pyads reads 1024) is accepted."""
-        reader = ByteReader(raw, "symbol upload info 2")
-        return cls(*(reader.u32() for _ in range(6)))
+        first = ByteReader(raw, cls.__name__).take(cls.layout.size)
+        return cls.from_reader(ByteReader(first, cls.__name__))
 
 
 def encode_symbol_name(name: str) -> bytes:

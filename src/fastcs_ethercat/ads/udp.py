@@ -19,7 +19,13 @@ from typing import Final, Self
 from fastcs_ethercat.ads.constants import AdsReturnCode, AmsPort
 from fastcs_ethercat.ads.errors import AdsCodecError
 from fastcs_ethercat.ads.netid import AmsNetId
-from fastcs_ethercat.ads.wire import ByteReader, decode_c_string, encode_text
+from fastcs_ethercat.ads.wire import (
+    ByteReader,
+    decode_c_string,
+    encode_text,
+    enum_or_int,
+    pack,
+)
 
 UDP_MAGIC: Final = 0x71146603
 UDP_HEADER_SIZE: Final = 24
@@ -101,23 +107,20 @@ class UdpPacket:
         return next((t for t in self.tags if t.tag == tag), None)
 
     def encode(self) -> bytes:
-        try:
-            head = _HEAD.pack(
-                UDP_MAGIC,
-                self.invoke_id,
-                self.service,
-                self.netid.to_bytes(),
-                self.port,
-                len(self.tags),
-            )
-            tags = b"".join(
-                _TAG.pack(int(t.tag), len(t.data)) + bytes(t.data) for t in self.tags
-            )
-        except struct.error as error:
-            raise AdsCodecError(
-                f"UDP packet field out of range: {error}",
-                AdsReturnCode.DEVICE_INVALID_DATA,
-            ) from error
+        head = pack(
+            _HEAD,
+            UDP_MAGIC,
+            self.invoke_id,
+            self.service,
+            self.netid.to_bytes(),
+            self.port,
+            len(self.tags),
+            what="UDP packet field",
+        )
+        tags = b"".join(
+            pack(_TAG, int(t.tag), len(t.data), what="UDP tag") + bytes(t.data)
+            for t in self.tags
+        )
         return head + tags
 
     @classmethod
@@ -141,25 +144,9 @@ class UdpPacket:
         tags: list[UdpTagValue] = []
         for _ in range(tag_count):
             tag_id, length = reader.u16(), reader.u16()
-            tags.append(UdpTagValue(_tag_or_int(tag_id), reader.take(length)))
+            tags.append(UdpTagValue(enum_or_int(UdpTag, tag_id), reader.take(length)))
         reader.expect_end()
         return cls(service, AmsNetId.from_bytes(netid), tuple(tags), port, invoke_id)
-
-
-def _u32(value: int) -> bytes:
-    try:
-        return struct.pack("<I", value)
-    except struct.error as error:
-        raise AdsCodecError(
-            f"{value} does not fit in u32", AdsReturnCode.DEVICE_INVALID_DATA
-        ) from error
-
-
-def _tag_or_int(tag_id: int) -> UdpTag | int:
-    try:
-        return UdpTag(tag_id)
-    except ValueError:
-        return tag_id
 
 
 # -- the packets pyads sends and expects ------------------------------------
@@ -179,13 +166,7 @@ def discover_reply(
     """A discovery reply: the target's NetId (all pyads reads), its host name
     and its TwinCAT version as tags."""
     major, minor, build = twincat_version
-    try:
-        version = struct.pack("<BBH", major, minor, build)
-    except struct.error as error:
-        raise AdsCodecError(
-            f"TwinCAT version {twincat_version} out of range",
-            AdsReturnCode.DEVICE_INVALID_DATA,
-        ) from error
+    version = pack("<BBH", major, minor, build, what="TwinCAT version")
     return UdpPacket(
         UdpService.DISCOVER | UDP_RESPONSE_FLAG,
         netid,
@@ -231,6 +212,6 @@ def add_route_reply(
     return UdpPacket(
         UdpService.ADD_ROUTE | UDP_RESPONSE_FLAG,
         netid,
-        (UdpTagValue(UdpTag.STATUS, _u32(result)),),
+        (UdpTagValue(UdpTag.STATUS, pack("<I", result, what="add-route result")),),
         invoke_id=invoke_id,
     )

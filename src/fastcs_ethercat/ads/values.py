@@ -4,8 +4,8 @@ Covers the scalar types of the I/O image and PLC (BOOL, BIT, BIT2..BIT8,
 SINT/USINT/BYTE, INT/UINT/WORD, DINT/UDINT/DWORD, LINT/ULINT/LWORD, REAL,
 LREAL, TIME-like 32/64-bit types), STRING(n) (n + 1 bytes, Windows-1252,
 NUL-terminated), WSTRING(n) and `ARRAY [a..b(, c..d)] OF T`. Every type has a
-numpy dtype so a whole sum-read buffer can be viewed at once with
-`sum_read_dtype` on the hot path.
+numpy dtype so a whole sum-read answer can be viewed at once on the hot
+path (`ads.sums.SumReadLayout.dtype`).
 
 BIT and BITn fields live in the bit image; read by bytes (as pyads does, with
 a 1-byte BOOL) they occupy one byte each.
@@ -291,23 +291,3 @@ def structured_dtype(
             "itemsize": max(end, itemsize or 0),
         }
     )
-
-
-def sum_read_dtype(
-    fields: Sequence[tuple[str, np.dtype[Any] | str]],
-) -> np.dtype[Any]:
-    """The dtype of a whole 0xF080 answer for these (name, dtype) items.
-
-    Field "results" holds the n result codes; each item's field sits at its
-    data offset, so `np.frombuffer(answer, sum_read_dtype(...))[0]` decodes
-    the lot in one go.
-    """
-    count = len(fields)
-    layout: list[tuple[str, np.dtype[Any] | str, int]] = []
-    if count:
-        layout.append(("results", np.dtype(("<u4", (count,))), 0))
-    offset = 4 * count
-    for name, dtype in fields:
-        layout.append((name, dtype, offset))
-        offset += np.dtype(dtype).itemsize
-    return structured_dtype(layout, offset)

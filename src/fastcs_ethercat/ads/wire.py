@@ -8,7 +8,10 @@ built on it keeps the codec's promise of a single exception type.
 from __future__ import annotations
 
 import struct
-from typing import Final
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import fields
+from enum import IntEnum
+from typing import Any, ClassVar, Final, Self, TypeVar, cast
 
 from fastcs_ethercat.ads.constants import AdsReturnCode
 from fastcs_ethercat.ads.errors import AdsCodecError
@@ -17,6 +20,9 @@ U8: Final = struct.Struct("<B")
 U16: Final = struct.Struct("<H")
 U32: Final = struct.Struct("<I")
 U64: Final = struct.Struct("<Q")
+
+_T = TypeVar("_T")
+_E = TypeVar("_E", bound=IntEnum)
 
 STRING_ENCODING: Final = "windows-1252"
 """TwinCAT writes names, type names and comments in the Windows code page."""
@@ -104,6 +110,30 @@ class ByteReader:
             )
 
 
+def pack(layout: str | struct.Struct, *values: object, what: str = "field") -> bytes:
+    """`struct.pack` that reports a value out of range as a codec error."""
+    try:
+        if isinstance(layout, struct.Struct):
+            return layout.pack(*values)
+        return struct.pack(layout, *values)
+    except struct.error as error:
+        raise AdsCodecError(
+            f"{what} out of range: {error}", AdsReturnCode.DEVICE_INVALID_DATA
+        ) from error
+
+
+def exactly(
+    raw: bytes | bytearray | memoryview,
+    size: int,
+    what: str,
+    code: AdsReturnCode = AdsReturnCode.DEVICE_INVALID_SIZE,
+) -> ByteReader:
+    """A reader over `raw`, which must be `size` bytes long."""
+    if len(raw) != size:
+        raise AdsCodecError(f"{what} is {size} bytes, got {len(raw)}", code)
+    return ByteReader(raw, what)
+
+
 def check_u32(value: int, what: str) -> int:
     """Reject values that do not fit an unsigned 32-bit field."""
     if not 0 <= value <= 0xFFFF_FFFF:
@@ -120,3 +150,120 @@ def check_u16(value: int, what: str) -> int:
             f"{what}={value} does not fit in u16", AdsReturnCode.DEVICE_INVALID_DATA
         )
     return value
+
+
+def read_c_string(reader: ByteReader, length: int, what: str) -> str:
+    """A string of known length that must be followed by its NUL."""
+    text = reader.take(length)
+    if reader.take(1) != b"\0":
+        raise AdsCodecError(
+            f"{reader.what}: {what} of {length} bytes is not NUL-terminated",
+            AdsReturnCode.DEVICE_INVALID_DATA,
+        )
+    return decode_text(text)
+
+
+EntryDecoder = Callable[[bytes, int], tuple[_T, int]]
+"""decode_at(buffer, offset) -> (entry, its length in bytes)."""
+
+
+def iter_entries(
+    table: bytes | bytearray | memoryview,
+    decode_at: EntryDecoder[_T],
+    count: int | None = None,
+) -> Iterator[_T]:
+    """Walk a table of length-prefixed entries (symbols, data types) by each
+    entry's own length; stop after `count` if given, else at the end."""
+    data = bytes(table)
+    position = seen = 0
+    while position < len(data) if count is None else seen < count:
+        entry, used = decode_at(data, position)
+        yield entry
+        position += used
+        seen += 1
+
+
+def decode_whole(
+    raw: bytes | bytearray | memoryview, decode_at: EntryDecoder[_T]
+) -> _T:
+    """The one entry that fills `raw` exactly (e.g. a 0xF009 answer)."""
+    data = bytes(raw)
+    entry, used = decode_at(data, 0)
+    if used != len(data):
+        raise AdsCodecError(
+            f"entry is {used} bytes, buffer has {len(data)}",
+            AdsReturnCode.DEVICE_INVALID_SIZE,
+        )
+    return entry
+
+
+def enum_or_int(kind: type[_E], value: int) -> _E | int:
+    """The member of `kind` for a known value, the bare int for another
+    (a peer may send ids this codec does not name)."""
+    try:
+        return kind(value)
+    except ValueError:
+        return value
+
+
+class FixedRecord:
+    """Mixin for a dataclass whose fields, in order, are packed as `layout`
+    (then `reserved` zero bytes): encode, and decode exactly that many bytes."""
+
+    __slots__ = ()
+    layout: ClassVar[struct.Struct]
+    reserved: ClassVar[int] = 0
+
+    def encode(self) -> bytes:
+        values = [getattr(self, f.name) for f in fields(cast(Any, self))]
+        what = f"{type(self).__name__} field"
+        return pack(self.layout, *values, what=what) + bytes(self.reserved)
+
+    @classmethod
+    def decode(cls, raw: bytes | bytearray | memoryview) -> Self:
+        reader = exactly(raw, cls.layout.size + cls.reserved, cls.__name__)
+        return cls.from_reader(reader)
+
+    @classmethod
+    def from_reader(cls, reader: ByteReader) -> Self:
+        """The record at the reader's position; the rest must be `reserved`."""
+        values = cls.layout.unpack(reader.take(cls.layout.size))
+        reader.take(cls.reserved)
+        reader.expect_end()
+        return cast(Any, cls)(*values)
+
+
+class TableEntry:
+    """Mixin for entries that tables hold back to back, each starting with
+    its own length (symbol and data-type entries): whole tables and single
+    entries from `decode_at`, tables from `encode`."""
+
+    __slots__ = ()
+
+    @classmethod
+    def decode_at(
+        cls, raw: bytes | bytearray | memoryview, offset: int = 0
+    ) -> tuple[Self, int]:
+        """The entry at `offset` and its length."""
+        raise NotImplementedError
+
+    def encode(self, alignment: int) -> bytes:
+        raise NotImplementedError
+
+    @classmethod
+    def decode(cls, raw: bytes | bytearray | memoryview) -> Self:
+        """The one entry that fills `raw` exactly (e.g. a 0xF009 answer)."""
+        return decode_whole(raw, cls.decode_at)
+
+    @classmethod
+    def decode_table(
+        cls, table: bytes | bytearray | memoryview, count: int | None = None
+    ) -> list[Self]:
+        """Every entry by its length; with `count` (from 0xF00F) only that
+        many, as pyads reads them."""
+        return list(iter_entries(table, cls.decode_at, count))
+
+    @staticmethod
+    def encode_table(entries: Sequence[TableEntry], alignment: int = 8) -> bytes:
+        """Entries back to back, each padded to `alignment`."""
+        return b"".join(entry.encode(alignment) for entry in entries)

@@ -19,8 +19,8 @@ import numpy.typing as npt
 
 from fastcs_ethercat.ads.constants import MAX_SUM_SUB_COMMANDS
 from fastcs_ethercat.ads.errors import AdsCodecError
-from fastcs_ethercat.ads.sums import SumReadItem
-from fastcs_ethercat.ads.values import parse_type, structured_dtype
+from fastcs_ethercat.ads.sums import SumReadItem, SumReadLayout
+from fastcs_ethercat.ads.values import parse_type
 from fastcs_ethercat.ioc.plan import Point, PointKind
 
 
@@ -107,24 +107,12 @@ class ChunkDecoder:
         point_items: list[int],
         offsets_in_item: list[int],
     ) -> ChunkDecoder:
-        count = len(items)
-        item_starts = np.zeros(count, dtype=np.intp)
-        position = 4 * count
-        for n, item in enumerate(items):
-            item_starts[n] = position
-            position += item.length
-        starts = np.array(
-            [
-                item_starts[n] + o
-                for n, o in zip(point_items, offsets_in_item, strict=True)
-            ],
-            dtype=np.intp,
+        layout = SumReadLayout.of(items)
+        starts = layout.data_offsets[np.array(point_items, dtype=np.intp)] + np.array(
+            offsets_in_item, dtype=np.intp
         )
         sizes = np.array([max(p.byte_size, 1) for p in points], dtype=np.intp)
-        fields: list[tuple[str, np.dtype[Any] | str, int]] = [
-            ("results", np.dtype(("<u4", (count,))), 0)
-        ]
-        fields += [
+        fields = [
             (f"p{i}", point_dtype(p), int(starts[i])) for i, p in enumerate(points)
         ]
         bits = [
@@ -141,14 +129,14 @@ class ChunkDecoder:
             items=items,
             points=points,
             point_items=np.array(point_items, dtype=np.intp),
-            dtype=structured_dtype(fields, position),
+            dtype=layout.dtype(fields),
             starts=starts,
             ends=starts + sizes,
             bit_index=np.array(bits, dtype=np.intp),
             bit_byte=bit_byte,
             bit_shift=bit_shift,
             bit_mask=bit_mask,
-            answer_size=position,
+            answer_size=layout.size,
             converters=[_converter(p) for p in points],
             bit_position={p: n for n, p in enumerate(bits)},
         )

@@ -192,8 +192,10 @@ def _slave_name_and_type(
 
 async def read_symbol_version(device: AdsClient) -> int:
     """The device's symbol version (0xF008): it changes on an online change,
-    after which every point must be resolved again (offsets move)."""
-    return (await device.read(IndexGroup.SYM_VERSION, 0, 1))[0]
+    after which every point must be resolved again (offsets move); -1 where
+    the port does not answer it."""
+    version = await device.read_symbol_version()
+    return -1 if version is None else version
 
 
 def _is_coupler(

@@ -14,8 +14,8 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 from fastcs_ethercat.ads.client import SymbolTables
-from fastcs_ethercat.ads.constants import DataTypeFlag, IndexGroup
-from fastcs_ethercat.ads.datatypes import AdsDataTypeEntry
+from fastcs_ethercat.ads.constants import IndexGroup
+from fastcs_ethercat.ads.datatypes import AdsDataTypeEntry, MemberLayout, walk_members
 from fastcs_ethercat.ads.errors import AdsCodecError
 from fastcs_ethercat.ads.symbols import AdsSymbolEntry
 from fastcs_ethercat.ads.values import parse_type
@@ -97,67 +97,38 @@ def symbol_members(entry: AdsSymbolEntry, types: Types) -> list[_Member]:
     if data_type is None:
         leaf = _leaf("", entry.type_name, 0, entry.size)
         return [leaf] if leaf else []
-    found: list[_Member] = []
-    _walk(data_type, types, "", 0, found, 0)
-    return found
+    members = (_member(layout) for layout in walk_members(data_type, types))
+    return [member for member in members if member is not None]
 
 
-def _walk(
-    data_type: AdsDataTypeEntry,
-    types: Types,
-    prefix: str,
-    base: int,
-    found: list[_Member],
-    depth: int,
-) -> None:
-    if depth > 8:
-        return
-    if not data_type.sub_items:
-        leaf = _type_leaf(prefix.rstrip("."), data_type, base)
-        if leaf:
-            found.append(leaf)
-        return
-    for item in data_type.sub_items:
-        path = f"{prefix}{item.name}"
-        if item.flags & DataTypeFlag.BIT_VALUES:
-            found.append(
-                _Member(
-                    path,
-                    item.type_name,
-                    PointKind.BIT if item.size == 1 else PointKind.BITS,
-                    base,
-                    max(data_type.size, 1),
-                    item.offset,
-                    item.size,
-                )
-            )
-            continue
-        nested = item if item.sub_items else types.get(item.type_name)
-        if nested is not None and (nested.sub_items or nested.array_dimensions):
-            _walk(nested, types, f"{path}.", base + item.offset, found, depth + 1)
-            continue
-        leaf = _leaf(path, item.type_name, base + item.offset, item.size)
-        if leaf:
-            found.append(leaf)
-
-
-def _type_leaf(path: str, data_type: AdsDataTypeEntry, base: int) -> _Member | None:
-    """A data type without members: an array (oversampling) or an alias."""
-    if data_type.array_dimensions:
-        length = math.prod(d.element_count for d in data_type.array_dimensions)
+def _member(layout: MemberLayout) -> _Member | None:
+    """A leaf of the codec's type walk, addressed for a sum read."""
+    if layout.bit_size:
+        kind = PointKind.BIT if layout.bit_size == 1 else PointKind.BITS
+        return _Member(
+            layout.path,
+            layout.type_name,
+            kind,
+            layout.offset,
+            layout.size,
+            layout.bit_offset,
+            layout.bit_size,
+        )
+    if layout.dimensions:  # a named array type: oversampling
+        length = math.prod(d.element_count for d in layout.dimensions)
         try:
-            element = parse_type(data_type.type_name)
+            element = parse_type(layout.type_name)
         except AdsCodecError:
             return None
         return _Member(
-            path,
+            layout.path,
             element.name,
             PointKind.ARRAY,
-            base,
+            layout.offset,
             element.size * length,
             length=length,
         )
-    return _leaf(path, data_type.type_name, base, data_type.size)
+    return _leaf(layout.path, layout.type_name, layout.offset, layout.size)
 
 
 def _leaf(path: str, type_name: str, offset: int, size: int) -> _Member | None:

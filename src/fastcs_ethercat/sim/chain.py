@@ -214,6 +214,16 @@ class SystemSpec(_Model):
         description="Serve 0xF081 on the device port; real TwinCAT answers "
         "0x701 there (pyads issue #456).",
     )
+    symbol_version_on_device_port: bool = Field(
+        default=True,
+        description="Answer the symbol version (0xF008) on the device port; "
+        "whether a real one does is unconfirmed, so clients must not rely on it.",
+    )
+    upload_info_2: bool = Field(
+        default=True,
+        description="Answer 0xF00F (24 bytes); older TwinCAT answers only "
+        "0xF00C (8 bytes: symbol count and table size).",
+    )
 
     @field_validator("net_id", mode="before")
     @classmethod

@@ -11,7 +11,7 @@ from typing import Any, Final
 
 from fastcs_ethercat.ads.constants import AdsReturnCode
 from fastcs_ethercat.ads.errors import AdsCodecError
-from fastcs_ethercat.sim.chain import SignalSpec
+from fastcs_ethercat.sim.chain import SignalSpec, SystemSpec
 from fastcs_ethercat.sim.generators import (
     Leaf,
     SignalBank,
@@ -58,14 +58,13 @@ class SimDevice:
         *,
         seed: int,
         cycle_s: float,
-        max_sum_items: int,
-        sum_write: bool,
+        system: SystemSpec,
     ) -> None:
         self.master = master
         self.seed = seed
         self.cycle_s = cycle_s
-        self.max_sum_items = max_sum_items
-        self.sum_write = sum_write
+        self.system = system
+        """Which services the device port offers (sum write, 0xF008, 0xF00F)."""
         self.ethercat = EtherCatMaster(master)
         self.generation = 0
         self.version = 1
@@ -264,16 +263,16 @@ class SimDevice:
         return failing_bits(self.table, self.read_errors) if self.read_errors else []
 
     def read_resolved(self, found: Resolved, length: int) -> tuple[int, bytes]:
-        if length < found.size:
-            return AdsReturnCode.DEVICE_INVALID_SIZE, b""
+        """The value's bytes; a shorter read gets its first bytes (pyads
+        users read one character of a STRING or the first elements of an
+        array that way), a longer one the whole value."""
         if self.read_errors:
             bits = FailingBits.of(found, 0)
             code = error_of(self.failing(), bits.area, bits.first, bits.end)
             if code:
                 return code, b""
-        return AdsReturnCode.NO_ERROR, self.image.read_raw(
-            found.area, found.bit_address, found.type
-        )
+        data = self.image.read_raw(found.area, found.bit_address, found.type)
+        return AdsReturnCode.NO_ERROR, data[:length]
 
     def write_resolved(self, found: Resolved, data: bytes) -> int:
         if len(data) != found.size:

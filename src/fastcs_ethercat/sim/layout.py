@@ -88,8 +88,44 @@ OUTPUTS: Final = ImageArea(
 AREAS: Final = (INPUTS, OUTPUTS)
 
 
+class ImagePlace:
+    """Where a value sits in a process image, and how ADS addresses it: a bit
+    field by bit in the bit group, anything else by byte (mixed into classes
+    that have `type`, `area` and `bit_address`)."""
+
+    __slots__ = ()
+    type: TcType
+    area: ImageArea
+    bit_address: int
+
+    @property
+    def index_group(self) -> int:
+        return self.area.bit_group if self.type.is_bit else self.area.byte_group
+
+    @property
+    def index_offset(self) -> int:
+        return self.bit_address if self.type.is_bit else self.bit_address // 8
+
+    @property
+    def size(self) -> int:
+        return self.type.symbol_size
+
+    def symbol_entry(self, name: str, comment: str = "") -> AdsSymbolEntry:
+        """The 0xF00B / 0xF009 entry of this place under `name`."""
+        return AdsSymbolEntry(
+            name=name,
+            index_group=self.index_group,
+            index_offset=self.index_offset,
+            size=self.size,
+            data_type=self.type.ads_type,
+            type_name=self.type.name,
+            comment=comment,
+            flags=int(SymbolFlag.BIT_VALUE) if self.type.is_bit else 0,
+        )
+
+
 @dataclass(frozen=True, slots=True)
-class SymbolDef:
+class SymbolDef(ImagePlace):
     """One entry of the device's symbol table."""
 
     name: str
@@ -104,34 +140,9 @@ class SymbolDef:
     """Computed by the master (WcState, InfoData, Inputs), not by a terminal."""
     comment: str = ""
 
-    @property
-    def index_group(self) -> int:
-        return self.area.bit_group if self.type.is_bit else self.area.byte_group
-
-    @property
-    def index_offset(self) -> int:
-        return self.bit_address if self.type.is_bit else self.bit_address // 8
-
-    @property
-    def size(self) -> int:
-        return self.type.symbol_size
-
-    @property
-    def flags(self) -> int:
-        return int(SymbolFlag.BIT_VALUE) if self.type.is_bit else 0
-
     def entry(self, name: str | None = None) -> AdsSymbolEntry:
         """The 0xF00B / 0xF009 entry for this symbol."""
-        return AdsSymbolEntry(
-            name=name or self.name,
-            index_group=self.index_group,
-            index_offset=self.index_offset,
-            size=self.size,
-            data_type=self.type.ads_type,
-            type_name=self.type.name,
-            comment=self.comment,
-            flags=self.flags,
-        )
+        return self.symbol_entry(name or self.name, self.comment)
 
 
 @dataclass(frozen=True, slots=True)

@@ -6,7 +6,8 @@ with the requested state as offset to request it (Beckhoff "ADS Interface"
 of the EtherCAT device); 0x06 slave
 count u16; 0x07 slave addresses u16 x n; 0x09 [0] (AL state, link) per
 slave, [address] one slave; 0x0C frame counters 5 x u32; 0x11 [address]
-identity 4 x u32; 0x12 [address] CRC counters 4 x u32; 0xF302 the master's
+identity 4 x u32; 0x12 [address] CRC counters 4 x u32, [0] one u32 per
+slave (its ports added); 0xF302 the master's
 CoE (0x1018 identity, 0x8000 + n sub 2 / 3: type and name of slave n).
 """
 
@@ -28,6 +29,7 @@ from fastcs_ethercat.ads.ethercat import (
     LinkState,
     SlaveIdentity,
     SlaveState,
+    encode_crc_totals,
     encode_master_state,
     encode_slave_addresses,
     encode_slave_count,
@@ -195,6 +197,10 @@ class EtherCatMaster:
                     return AdsReturnCode.DEVICE_INVALID_OFFSET
                 return runtime.slave.identity.encode()
             case EtherCatMasterGroup.SLAVE_CRC_COUNTERS:
+                if offset == 0:  # every slave at once (catio reads this)
+                    return encode_crc_totals(
+                        [CrcCounters(*rt.crc).total for rt in self.slaves]
+                    )
                 runtime = self.by_address.get(offset)
                 if runtime is None:
                     return AdsReturnCode.DEVICE_INVALID_OFFSET

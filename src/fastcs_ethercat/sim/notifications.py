@@ -136,11 +136,15 @@ class NotificationRegistry:
             return AdsReturnCode.DEVICE_INVALID_WATCH_SIZE, 0
         if len(self._subscriptions) >= self._max_handles:
             return AdsReturnCode.DEVICE_NO_MORE_HANDLES, 0
-        result, _ = self._read_value(
+        result, value = self._read_value(
             packet.target, request.index_group, request.index_offset, request.length
         )
         if result != AdsReturnCode.NO_ERROR:
             return result, 0
+        if len(value) < request.length:
+            # Longer than what it watches (a symbol by handle): refused, not
+            # accepted to stay silent. TwinCAT's code for it is unconfirmed.
+            return AdsReturnCode.DEVICE_INVALID_SIZE, 0
         handle = self._handles.allocate()
         self._subscriptions[handle] = Subscription(
             handle=handle,

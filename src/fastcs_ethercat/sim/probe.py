@@ -12,23 +12,8 @@ import struct
 from dataclasses import dataclass, field
 from typing import Final, Protocol
 
-from fastcs_ethercat.ads.commands import (
-    AdsRequest,
-    AdsResponse,
-    ReadDeviceInfoRequest,
-    ReadDeviceInfoResponse,
-    ReadRequest,
-    ReadResponse,
-    ReadStateRequest,
-    ReadStateResponse,
-    ReadWriteRequest,
-    ReadWriteResponse,
-    WriteControlRequest,
-    WriteControlResponse,
-    WriteRequest,
-    WriteResponse,
-    decode_response,
-)
+from fastcs_ethercat.ads import commands
+from fastcs_ethercat.ads.commands import AdsRequest, AdsResponse
 from fastcs_ethercat.ads.constants import (
     REQUEST_FLAGS,
     AdsReturnCode,
@@ -91,42 +76,42 @@ class SimProbe:
         _, answer = self.exchange(request)
         if answer.error_code:
             raise ProbeError(answer.error_code)
-        return decode_response(int(answer.command), answer.payload)
+        return commands.decode_response(int(answer.command), answer.payload)
 
     # -- the commands -----------------------------------------------------------
 
-    def read(self, group: int, offset: int, length: int) -> ReadResponse:
-        answer = self.request(ReadRequest(group, offset, length))
-        assert isinstance(answer, ReadResponse)
+    def read(self, group: int, offset: int, length: int) -> commands.ReadResponse:
+        answer = self.request(commands.ReadRequest(group, offset, length))
+        assert isinstance(answer, commands.ReadResponse)
         return answer
 
-    def write(self, group: int, offset: int, data: bytes) -> WriteResponse:
-        answer = self.request(WriteRequest(group, offset, data))
-        assert isinstance(answer, WriteResponse)
+    def write(self, group: int, offset: int, data: bytes) -> commands.WriteResponse:
+        answer = self.request(commands.WriteRequest(group, offset, data))
+        assert isinstance(answer, commands.WriteResponse)
         return answer
 
     def read_write(
         self, group: int, offset: int, length: int, data: bytes
-    ) -> ReadWriteResponse:
-        answer = self.request(ReadWriteRequest(group, offset, length, data))
-        assert isinstance(answer, ReadWriteResponse)
+    ) -> commands.ReadWriteResponse:
+        answer = self.request(commands.ReadWriteRequest(group, offset, length, data))
+        assert isinstance(answer, commands.ReadWriteResponse)
         return answer
 
-    def read_state(self) -> ReadStateResponse:
-        answer = self.request(ReadStateRequest())
-        assert isinstance(answer, ReadStateResponse)
+    def read_state(self) -> commands.ReadStateResponse:
+        answer = self.request(commands.ReadStateRequest())
+        assert isinstance(answer, commands.ReadStateResponse)
         return answer
 
-    def device_info(self) -> ReadDeviceInfoResponse:
-        answer = self.request(ReadDeviceInfoRequest())
-        assert isinstance(answer, ReadDeviceInfoResponse)
+    def device_info(self) -> commands.ReadDeviceInfoResponse:
+        answer = self.request(commands.ReadDeviceInfoRequest())
+        assert isinstance(answer, commands.ReadDeviceInfoResponse)
         return answer
 
     def write_control(
         self, ads_state: int, device_state: int = 0
-    ) -> WriteControlResponse:
-        answer = self.request(WriteControlRequest(ads_state, device_state))
-        assert isinstance(answer, WriteControlResponse)
+    ) -> commands.WriteControlResponse:
+        answer = self.request(commands.WriteControlRequest(ads_state, device_state))
+        assert isinstance(answer, commands.WriteControlResponse)
         return answer
 
     # -- symbol helpers -----------------------------------------------------------
@@ -140,12 +125,12 @@ class SimProbe:
             raise ProbeError(answer.result)
         return struct.unpack("<I", answer.data)[0]
 
-    def value_by_name(self, name: str, length: int) -> ReadWriteResponse:
+    def value_by_name(self, name: str, length: int) -> commands.ReadWriteResponse:
         return self.read_write(
             IndexGroup.SYM_VALUE_BY_NAME, 0, length, name.encode("cp1252") + b"\0"
         )
 
-    def info_by_name(self, name: str, length: int = 1024) -> ReadWriteResponse:
+    def info_by_name(self, name: str, length: int = 1024) -> commands.ReadWriteResponse:
         return self.read_write(
             IndexGroup.SYM_INFO_BY_NAME_EX, 0, length, name.encode("cp1252") + b"\0"
         )

@@ -29,7 +29,7 @@ from fastcs_ethercat.ads.commands import (
     DeleteDeviceNotificationResponse,
     ReadWriteRequest,
     ReadWriteResponse,
-    error_response,
+    error_packet,
 )
 from fastcs_ethercat.ads.constants import AdsReturnCode, AmsCommand, IndexGroup
 from fastcs_ethercat.ads.errors import AdsCodecError
@@ -88,16 +88,6 @@ class SimTargetLike(Protocol):
     def read(
         self, address: AmsAddress, group: int, offset: int, length: int
     ) -> tuple[int, bytes]: ...
-
-
-def error_packet(packet: AmsPacket, code: int) -> AmsPacket:
-    """Answer `packet` with `code`: in the result field of a known command's
-    response, in the AMS header's error code for anything else."""
-    try:
-        payload = error_response(int(packet.command), code).encode()
-    except AdsCodecError:
-        return packet.response(error_code=code)
-    return packet.response(payload=payload)
 
 
 class AmsConnection(asyncio.Protocol):

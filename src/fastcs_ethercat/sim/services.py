@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import struct
 from dataclasses import dataclass, field
-from typing import Final
+from typing import Final, TypeVar
 
 import numpy as np
 import numpy.typing as npt
@@ -41,6 +41,7 @@ from fastcs_ethercat.ads.ethercat import (
 )
 from fastcs_ethercat.ads.sums import (
     SumReadItem,
+    SumReadLayout,
     SumReadRequest,
     SumReadResponse,
     SumReadWriteRequest,
@@ -50,7 +51,7 @@ from fastcs_ethercat.ads.sums import (
 )
 from fastcs_ethercat.ads.wire import decode_text
 from fastcs_ethercat.sim.device import SimDevice
-from fastcs_ethercat.sim.itemfaults import FailingBits, item_error
+from fastcs_ethercat.sim.itemfaults import item_error
 from fastcs_ethercat.sim.layout import AREAS, INPUTS, OUTPUTS, ImageArea
 from fastcs_ethercat.sim.master import SlaveRuntime
 
@@ -75,6 +76,7 @@ _SUM_GROUPS: Final = frozenset(
 _U32: Final = struct.Struct("<I")
 
 Outcome = tuple[int, bytes]
+_Sum = TypeVar("_Sum", SumReadRequest, SumWriteRequest, SumReadWriteRequest)
 
 
 @dataclass(slots=True)
@@ -205,12 +207,16 @@ class DevicePort(Port):
             case IndexGroup.SYM_UPLOAD_INFO:
                 return fit(table.upload_info, length)
             case IndexGroup.SYM_UPLOAD_INFO_2:
+                if not dev.system.upload_info_2:  # older TwinCAT
+                    return AdsReturnCode.DEVICE_SERVICE_NOT_SUPPORTED, b""
                 return fit(table.upload_info2, length)
             case IndexGroup.SYM_UPLOAD:
                 return fit(table.upload, length)
             case IndexGroup.SYM_DT_UPLOAD:
                 return fit(table.data_types, length)
             case IndexGroup.SYM_VERSION:
+                if not dev.system.symbol_version_on_device_port:
+                    return AdsReturnCode.DEVICE_SERVICE_NOT_SUPPORTED, b""
                 return fit(bytes([dev.version]), length)
             case IndexGroup.SYM_VALUE_BY_HANDLE:
                 result, found = dev.handle(offset)
@@ -294,7 +300,7 @@ class DevicePort(Port):
             case IndexGroup.SUMUP_READ:
                 return self._sum_read(offset, length, data)
             case IndexGroup.SUMUP_WRITE:
-                if not dev.sum_write:
+                if not dev.system.sum_write_on_device_port:
                     return AdsReturnCode.DEVICE_SERVICE_NOT_SUPPORTED, b""
                 return self._sum_write(offset, length, data)
             case IndexGroup.SUMUP_READ_WRITE:
@@ -307,62 +313,54 @@ class DevicePort(Port):
 
     # -- sum commands ---------------------------------------------------------
 
-    def _too_many(self, count: int) -> bool:
-        """More sub-commands than the limit (500): the whole request is refused."""
-        return count > self.dev.max_sum_items or count == 0
+    def _sum_request(self, kind: type[_Sum], count: int, data: bytes) -> _Sum | int:
+        """The decoded sum request, or the code that refuses all of it: more
+        sub-commands than the limit (500, 0x705), or a malformed one."""
+        if count > self.dev.system.max_sum_items or count == 0:
+            return AdsReturnCode.DEVICE_INVALID_SIZE
+        try:
+            return kind.decode(data, count)
+        except AdsCodecError as error:
+            return error.return_code
 
     def _sum_read(self, count: int, length: int, data: bytes) -> Outcome:
-        if self._too_many(count):
-            return AdsReturnCode.DEVICE_INVALID_SIZE, b""
         image = self.dev.image
         failing = self.dev.failing()
-        if failing:
-            return self._sum_read_failing(count, length, data, failing)
-        plan = self.plans.lookup(data, image.inputs, image.outputs)
+        plan = None if failing else self.plans.lookup(data, image.inputs, image.outputs)
         if plan is not None and plan.count == count:
             if length < plan.read_length:
                 return AdsReturnCode.DEVICE_INVALID_SIZE, b""
             return AdsReturnCode.NO_ERROR, plan.answer(image.inputs, image.outputs)
-        try:
-            request = SumReadRequest.decode(data, count)
-        except AdsCodecError as error:
-            return error.return_code, b""
-        if not self.plans.knows(data):
-            self.plans.learn(data, request.items, image.inputs, image.outputs)
+        request = self._sum_request(SumReadRequest, count, data)
+        if isinstance(request, int):
+            return request, b""
         if length < request.read_length:
             return AdsReturnCode.DEVICE_INVALID_SIZE, b""
-        # The hot path: plain slices of the images, single bits by lookup.
-        areas = {area.byte_group: image.buffer(area) for area in AREAS}
-        bits = {area.bit_group: image.buffer(area) for area in AREAS}
-        outcomes = [
-            _slice(areas[i.index_group], i.index_offset, i.length)
-            if i.index_group in areas
-            else _bit(bits[i.index_group], i.index_offset)
-            if i.length == 1 and i.index_group in bits
-            else self._sub_read(i.index_group, i.index_offset, i.length)
-            for i in request.items
-        ]
-        return AdsReturnCode.NO_ERROR, SumReadResponse.for_items(
-            request.items, outcomes
-        ).encode()
-
-    def _sum_read_failing(
-        self, count: int, length: int, data: bytes, failing: list[FailingBits]
-    ) -> Outcome:
-        """A sum read while symbols fail: items touching one answer its error
-        (zero data), the others their values; no fast path."""
-        try:
-            request = SumReadRequest.decode(data, count)
-        except AdsCodecError as error:
-            return error.return_code, b""
-        if length < request.read_length:
-            return AdsReturnCode.DEVICE_INVALID_SIZE, b""
-        outcomes = [
-            (code, b"")
-            if (code := item_error(failing, i.index_group, i.index_offset, i.length))
-            else self._sub_read(i.index_group, i.index_offset, i.length)
-            for i in request.items
-        ]
+        if failing:
+            # Items touching a failing symbol answer its error (zero data),
+            # the others their values; no fast path.
+            outcomes = [
+                (code, b"")
+                if (
+                    code := item_error(failing, i.index_group, i.index_offset, i.length)
+                )
+                else self._sub_read(i.index_group, i.index_offset, i.length)
+                for i in request.items
+            ]
+        else:
+            if not self.plans.knows(data):
+                self.plans.learn(data, request.items, image.inputs, image.outputs)
+            # The hot path: plain slices of the images, single bits by lookup.
+            areas = {area.byte_group: image.buffer(area) for area in AREAS}
+            bits = {area.bit_group: image.buffer(area) for area in AREAS}
+            outcomes = [
+                _slice(areas[i.index_group], i.index_offset, i.length)
+                if i.index_group in areas
+                else _bit(bits[i.index_group], i.index_offset)
+                if i.length == 1 and i.index_group in bits
+                else self._sub_read(i.index_group, i.index_offset, i.length)
+                for i in request.items
+            ]
         return AdsReturnCode.NO_ERROR, SumReadResponse.for_items(
             request.items, outcomes
         ).encode()
@@ -378,12 +376,9 @@ class DevicePort(Port):
         )
 
     def _sum_write(self, count: int, length: int, data: bytes) -> Outcome:
-        if self._too_many(count):
-            return AdsReturnCode.DEVICE_INVALID_SIZE, b""
-        try:
-            request = SumWriteRequest.decode(data, count)
-        except AdsCodecError as error:
-            return error.return_code, b""
+        request = self._sum_request(SumWriteRequest, count, data)
+        if isinstance(request, int):
+            return request, b""
         if length < request.read_length:
             return AdsReturnCode.DEVICE_INVALID_SIZE, b""
         results = tuple(
@@ -395,12 +390,9 @@ class DevicePort(Port):
         return AdsReturnCode.NO_ERROR, SumWriteResponse(results).encode()
 
     def _sum_read_write(self, count: int, length: int, data: bytes) -> Outcome:
-        if self._too_many(count):
-            return AdsReturnCode.DEVICE_INVALID_SIZE, b""
-        try:
-            request = SumReadWriteRequest.decode(data, count)
-        except AdsCodecError as error:
-            return error.return_code, b""
+        request = self._sum_request(SumReadWriteRequest, count, data)
+        if isinstance(request, int):
+            return request, b""
         results: list[int] = []
         values: list[bytes] = []
         for item in request.items:
@@ -483,20 +475,19 @@ class _Gather:
 @dataclass(frozen=True, slots=True)
 class SumReadPlan:
     """A sum read whose every item is a valid image slice or single bit,
-    precompiled into index arrays: answered with two numpy gathers."""
+    precompiled into index arrays: answered with two numpy gathers into a
+    zeroed answer (all results 0, `SumReadLayout`)."""
 
     count: int
     read_length: int
-    header: bytes
-    data_size: int
     inputs: _Gather
     outputs: _Gather
 
     def answer(self, inputs: bytearray, outputs: bytearray) -> bytes:
-        data = np.zeros(self.data_size, dtype=np.uint8)
-        self.inputs.apply(data, inputs)
-        self.outputs.apply(data, outputs)
-        return self.header + data.tobytes()
+        answer = np.zeros(self.read_length, dtype=np.uint8)
+        self.inputs.apply(answer, inputs)
+        self.outputs.apply(answer, outputs)
+        return answer.tobytes()
 
 
 def compile_sum_read(
@@ -504,14 +495,14 @@ def compile_sum_read(
 ) -> SumReadPlan | None:
     """The plan for `items`, or None when any item needs the general path
     (another group, out of range, a multi-bit read)."""
+    layout = SumReadLayout.of(items)
     gathers: dict[int, tuple[bytearray, list[list[int]]]] = {}
     for area, buffer in ((INPUTS, inputs), (OUTPUTS, outputs)):
         lists: list[list[int]] = [[], [], [], [], []]
         gathers[area.byte_group] = (buffer, lists)
         gathers[area.bit_group] = (buffer, lists)
     byte_groups = {INPUTS.byte_group, OUTPUTS.byte_group}
-    position = 0
-    for item in items:
+    for item, position in zip(items, layout.data_offsets.tolist(), strict=True):
         found = gathers.get(item.index_group)
         if found is None:
             return None
@@ -528,7 +519,6 @@ def compile_sum_read(
             bit_to.append(position)
             bit_from.append(offset >> 3)
             bit_shift.append(offset & 7)
-        position += length
 
     def gather(group: int) -> _Gather:
         byte_to, byte_from, bit_to, bit_from, bit_shift = gathers[group][1]
@@ -542,9 +532,7 @@ def compile_sum_read(
 
     return SumReadPlan(
         count=len(items),
-        read_length=4 * len(items) + position,
-        header=bytes(4 * len(items)),
-        data_size=position,
+        read_length=layout.size,
         inputs=gather(INPUTS.byte_group),
         outputs=gather(OUTPUTS.byte_group),
     )

@@ -14,7 +14,6 @@ import re
 from dataclasses import dataclass
 from typing import Final
 
-from fastcs_ethercat.ads.constants import SymbolFlag
 from fastcs_ethercat.ads.datatypes import encode_data_type_table
 from fastcs_ethercat.ads.symbols import (
     AdsSymbolEntry,
@@ -22,14 +21,14 @@ from fastcs_ethercat.ads.symbols import (
     SymbolUploadInfo2,
     encode_symbol_table,
 )
-from fastcs_ethercat.sim.layout import DeviceLayout, ImageArea, SymbolDef
+from fastcs_ethercat.sim.layout import DeviceLayout, ImageArea, ImagePlace, SymbolDef
 from fastcs_ethercat.sim.tctypes import TcMember, TcType, data_type_entry
 
 _PATH_PART: Final = re.compile(r"\.([^.\[\]]+)|\[\s*(-?\d+)\s*\]")
 
 
 @dataclass(frozen=True, slots=True)
-class Resolved:
+class Resolved(ImagePlace):
     """Where a name lives: its type and its place in the image."""
 
     name: str
@@ -39,30 +38,10 @@ class Resolved:
     symbol: SymbolDef
     """The table entry the name belongs to."""
 
-    @property
-    def index_group(self) -> int:
-        return self.area.bit_group if self.type.is_bit else self.area.byte_group
-
-    @property
-    def index_offset(self) -> int:
-        return self.bit_address if self.type.is_bit else self.bit_address // 8
-
-    @property
-    def size(self) -> int:
-        return self.type.symbol_size
-
     def entry(self) -> AdsSymbolEntry:
         """The 0xF009 answer for this name."""
-        return AdsSymbolEntry(
-            name=self.name,
-            index_group=self.index_group,
-            index_offset=self.index_offset,
-            size=self.size,
-            data_type=self.type.ads_type,
-            type_name=self.type.name,
-            comment=self.symbol.comment if self.name == self.symbol.name else "",
-            flags=int(SymbolFlag.BIT_VALUE) if self.type.is_bit else 0,
-        )
+        comment = self.symbol.comment if self.name == self.symbol.name else ""
+        return self.symbol_entry(self.name, comment)
 
 
 class SymbolTable:

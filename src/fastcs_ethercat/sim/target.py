@@ -12,22 +12,8 @@ from collections.abc import Collection, Mapping, Sequence
 from pathlib import Path
 from typing import Any, Final
 
-from fastcs_ethercat.ads.commands import (
-    AdsRequest,
-    ReadDeviceInfoRequest,
-    ReadRequest,
-    ReadResponse,
-    ReadStateRequest,
-    ReadStateResponse,
-    ReadWriteRequest,
-    ReadWriteResponse,
-    WriteControlRequest,
-    WriteControlResponse,
-    WriteRequest,
-    WriteResponse,
-    decode_request,
-    error_response,
-)
+from fastcs_ethercat.ads import commands
+from fastcs_ethercat.ads.commands import AdsRequest, error_packet
 from fastcs_ethercat.ads.constants import (
     AdsReturnCode,
     AmsCommand,
@@ -56,7 +42,11 @@ from fastcs_ethercat.sim.services import (
 )
 from fastcs_ethercat.terminals.registry import TerminalRegistry
 
-_GROUP_COMMANDS: Final = (ReadRequest, WriteRequest, ReadWriteRequest)
+_GROUP_COMMANDS: Final = (
+    commands.ReadRequest,
+    commands.WriteRequest,
+    commands.ReadWriteRequest,
+)
 _AL_STATES: Final = {state.name: int(state) for state in AlState}
 
 
@@ -80,8 +70,7 @@ class SimTarget:
                 master,
                 seed=seed,
                 cycle_s=self.cycle_s,
-                max_sum_items=system.max_sum_items,
-                sum_write=system.sum_write_on_device_port,
+                system=system,
             )
             for master in masters
         ]
@@ -165,12 +154,12 @@ class SimTarget:
             return packet.response(error_code=AdsReturnCode.TARGET_PORT_NOT_FOUND)
         command = int(packet.command)
         try:
-            request = decode_request(command, packet.payload)
+            request = commands.decode_request(command, packet.payload)
         except AdsCodecError as error:
-            return self._error(packet, error.return_code)
+            return error_packet(packet, error.return_code)
         forced = self._forced_error(request)
         if forced:
-            return self._error(packet, forced)
+            return error_packet(packet, forced)
         return packet.response(payload=self._serve(port, request).encode())
 
     def read(
@@ -184,13 +173,6 @@ class SimTarget:
             return self._forced[0], b""
         return port.read(group, offset, length)
 
-    def _error(self, packet: AmsPacket, code: int) -> AmsPacket:
-        try:
-            payload = error_response(int(packet.command), code).encode()
-        except AdsCodecError:
-            return packet.response(error_code=code)
-        return packet.response(payload=payload)
-
     def _forced_error(self, request: AdsRequest) -> int:
         if self._forced is None:
             return 0
@@ -202,38 +184,40 @@ class SimTarget:
         return 0
 
     def _serve(self, port: Port, request: AdsRequest) -> Any:
-        if isinstance(request, ReadRequest):
+        if isinstance(request, commands.ReadRequest):
             result, data = port.read(
                 request.index_group, request.index_offset, request.length
             )
-            return ReadResponse(result, data if result == 0 else b"")
-        if isinstance(request, WriteRequest):
-            return WriteResponse(
+            return commands.ReadResponse(result, data if result == 0 else b"")
+        if isinstance(request, commands.WriteRequest):
+            return commands.WriteResponse(
                 port.write(
                     request.index_group, request.index_offset, bytes(request.data)
                 )
             )
-        if isinstance(request, ReadWriteRequest):
+        if isinstance(request, commands.ReadWriteRequest):
             result, data = port.read_write(
                 request.index_group,
                 request.index_offset,
                 request.read_length,
                 bytes(request.data),
             )
-            return ReadWriteResponse(result, data if result == 0 else b"")
-        if isinstance(request, ReadStateRequest):
+            return commands.ReadWriteResponse(result, data if result == 0 else b"")
+        if isinstance(request, commands.ReadStateRequest):
             ads_state, device_state = port.read_state()
-            return ReadStateResponse(AdsReturnCode.NO_ERROR, ads_state, device_state)
-        if isinstance(request, ReadDeviceInfoRequest):
+            return commands.ReadStateResponse(
+                AdsReturnCode.NO_ERROR, ads_state, device_state
+            )
+        if isinstance(request, commands.ReadDeviceInfoRequest):
             return port.device_info()
-        if isinstance(request, WriteControlRequest):
-            return WriteControlResponse(
+        if isinstance(request, commands.WriteControlRequest):
+            return commands.WriteControlResponse(
                 port.write_control(
                     request.ads_state, request.device_state, request.data
                 )
             )
         # Notifications are the I/O layer's; nothing else reaches a port.
-        return error_response(
+        return commands.error_response(
             int(request.command), AdsReturnCode.DEVICE_SERVICE_NOT_SUPPORTED
         )
 
