@@ -44,9 +44,13 @@ FROM venv-${WHEELS} AS venv
 
 FROM ${BASE_IMAGE} AS runtime
 COPY --from=venv /venv /venv
+# /epics/ioc/terminals: the shipped terminal types at a path a config can name.
 RUN useradd --create-home --uid 1000 --user-group ioc \
     && mkdir -p /epics/ioc/config /epics/opi /epics/runtime \
-    && chown ioc:ioc /epics/opi /epics/runtime
+    && chown ioc:ioc /epics/opi /epics/runtime \
+    && shipped=$(/venv/bin/python -c \
+        "import fastcs_ethercat.shipped as s; print(s.BUILTIN_TERMINALS_DIR)") \
+    && ln -s "$shipped" /epics/ioc/terminals
 
 ENV PATH=/venv/bin:$PATH \
     PYTHONUNBUFFERED=1
