@@ -15,37 +15,39 @@
 ARG BASE_IMAGE=python:3.11-slim
 ARG WHEELS=index
 
-# The venv from the package index: the locked dependencies, hash-checked,
-# then fastcs-ethercat itself built from the source here (its own layer, so
-# a change of the source does not download the dependencies again).
-FROM ${BASE_IMAGE} AS venv-index
-COPY deploy/requirements.lock /tmp/requirements.lock
-RUN python3 -m venv /venv \
-    && /venv/bin/pip install --no-cache-dir --require-hashes \
-        --requirement /tmp/requirements.lock
+# Wheels from the package index: the locked dependencies, hash-checked, then
+# fastcs-ethercat itself from the source here (its own step, so a change of
+# the source does not fetch the dependencies again).
+FROM ${BASE_IMAGE} AS wheels-index
+COPY deploy/requirements.lock /src/deploy/requirements.lock
+RUN python3 -m venv /opt/build \
+    && /opt/build/bin/pip wheel --no-cache-dir --require-hashes \
+        --requirement /src/deploy/requirements.lock --wheel-dir /wheels
 COPY pyproject.toml README.md LICENSE /src/
 COPY src /src/src
 COPY terminals /src/terminals
 COPY ioc /src/ioc
-RUN /venv/bin/pip install --no-cache-dir --no-deps /src
+RUN /opt/build/bin/pip wheel --no-cache-dir --no-deps --wheel-dir /wheels /src
 
-# The venv from what deploy/build-image.sh prepared on the host: the locked
-# dependencies as wheels (build/wheelhouse, hash-checked there) and the
-# fastcs-ethercat wheel (build/app). No network inside the build.
-FROM ${BASE_IMAGE} AS venv-context
-COPY build/wheelhouse /wheels
-RUN python3 -m venv /venv \
-    && /venv/bin/pip install --no-cache-dir --no-index --no-deps /wheels/*.whl
-COPY build/app /app
-RUN /venv/bin/pip install --no-cache-dir --no-index --no-deps /app/*.whl \
-    && /venv/bin/pip check
+# Wheels deploy/build-image.sh made on the host from the same lock
+# (hash-checked there) and the source: no network inside the build.
+FROM scratch AS wheels-context
+COPY build/wheelhouse/*.whl build/app/*.whl /wheels/
 
-FROM venv-${WHEELS} AS venv
+# (The instruction makes this a stage of its own, which podman 4.3's
+# --layers=false needs to clean up after itself.)
+FROM wheels-${WHEELS} AS wheels
+LABEL fastcs-ethercat.wheels="the wheels the runtime stage installs"
 
 FROM ${BASE_IMAGE} AS runtime
-COPY --from=venv /venv /venv
-# /epics/ioc/terminals: the shipped terminal types at a path a config can name.
-RUN useradd --create-home --uid 1000 --user-group ioc \
+# Exactly the locked set (no resolution, no network), then a non-root user
+# and the epics-containers folders; /epics/ioc/terminals is the shipped
+# terminal types at a path a config can name.
+RUN --mount=type=bind,from=wheels,source=/wheels,target=/wheels \
+    python3 -m venv /venv \
+    && /venv/bin/pip install --no-cache-dir --no-index --no-deps /wheels/*.whl \
+    && /venv/bin/pip check \
+    && useradd --create-home --uid 1000 --user-group ioc \
     && mkdir -p /epics/ioc/config /epics/opi /epics/runtime \
     && chown ioc:ioc /epics/opi /epics/runtime \
     && shipped=$(/venv/bin/python -c \

@@ -61,15 +61,26 @@ fi
 
 WHEELHOUSE=$REPO/build/wheelhouse
 APP=$REPO/build/app
-say "wheels: the locked dependencies and fastcs-ethercat"
-rm -rf "$WHEELHOUSE" "$APP"
-mkdir -p "$WHEELHOUSE" "$APP"
-"$PYTHON" -m pip wheel --quiet --require-hashes \
-    --requirement "$REPO/deploy/requirements.lock" --wheel-dir "$WHEELHOUSE"
+LOCK=$REPO/deploy/requirements.lock
+# The wheelhouse is kept while the lock is the same (its hash is stored in it).
+LOCK_HASH=$(sha256sum "$LOCK" | cut -d' ' -f1)
+if [[ $(cat "$WHEELHOUSE/.lock-sha256" 2>/dev/null) != "$LOCK_HASH" ]]; then
+    say "wheels of the locked dependencies"
+    rm -rf "$WHEELHOUSE"
+    mkdir -p "$WHEELHOUSE"
+    "$PYTHON" -m pip wheel --quiet --require-hashes --requirement "$LOCK" \
+        --wheel-dir "$WHEELHOUSE"
+    echo "$LOCK_HASH" >"$WHEELHOUSE/.lock-sha256"
+fi
+say "the fastcs-ethercat wheel"
+rm -rf "$APP"
+mkdir -p "$APP"
 "$PYTHON" -m pip wheel --quiet --no-deps --wheel-dir "$APP" "$REPO"
 
 say "podman build -t $TAG"
-"${PODMAN[@]}" build --network host \
+# --layers=false: one commit at the end, not one per instruction (each is a
+# full copy of the image with the vfs storage driver).
+"${PODMAN[@]}" build --network host --layers=false \
     --build-arg "BASE_IMAGE=$BASE_IMAGE" \
     --build-arg WHEELS=context \
     --tag "$TAG" "$REPO" >&2
