@@ -112,6 +112,15 @@ def _cpu_seconds(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
+def _alive(pid: int) -> bool:
+    """The process runs (an exited one waiting to be reaped does not)."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return False
+    return stat.rsplit(")", 1)[1].split()[0] not in ("Z", "X")
+
+
 def _rss_mb(pid: int) -> float:
     for line in Path(f"/proc/{pid}/status").read_text().splitlines():
         if line.startswith("VmRSS:"):
@@ -167,9 +176,10 @@ def test_ioc_in_the_image_serves_the_host_and_stops_on_sigterm(
             )
             _podman("kill", "--signal", "TERM", name)
             stopping = time.monotonic()
-            ioc.process.wait(30)
+            wait_for(lambda: not _alive(pid), 30)
             stopped_in = time.monotonic() - stopping
-            print(f"SIGTERM to exit: {stopped_in:.2f} s")
+            print(f"SIGTERM to exit of the IOC: {stopped_in:.2f} s")
+            ioc.process.wait(60)  # podman then removes the container
         finally:
             subprocess.run([PODMAN, "rm", "--force", name], capture_output=True)
             ioc.stop()

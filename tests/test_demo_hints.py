@@ -40,7 +40,7 @@ def test_a_busy_ca_port_moves_the_demo_to_free_ports(busy_ca_port: None) -> None
     for port, kind in ((ports.ca, socket.SOCK_STREAM), (ports.pva, socket.SOCK_STREAM)):
         with socket.socket(socket.AF_INET, kind) as probe:
             probe.bind(("127.0.0.1", port))  # free: nobody else has it
-    hints = DemoHints("D", ports, NAMES)
+    hints = DemoHints(ports, NAMES)
     assert f"serving CA on {ports.ca}" in hints.port_lines()[0]
 
 
@@ -55,7 +55,7 @@ def test_ports_the_user_set_are_kept() -> None:
 
 
 def test_the_lines_carry_their_variables_and_the_venvs_tools() -> None:
-    hints = DemoHints("D", DemoPorts(6064, 6075, 6076, moved=True), NAMES)
+    hints = DemoHints(DemoPorts(6064, 6075, 6076, moved=True), NAMES)
 
     lines = hints.try_lines()
     caget, pvget, text = (shlex.split(line.split(" ", 2)[2]) for line in lines[1:4])

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Final
 
-from fastcs_ethercat.cli.ports import CA_SERVER_PORT, DemoPorts
+from fastcs_ethercat.cli.ports import CA_SERVER_PORT, PVA_SERVER_PORT, DemoPorts
 
 NUMBER_PV_SUFFIX: Final = ":AICompactCh1"
 TEXT_PV_SUFFIX: Final = ":AlStateText"
@@ -29,9 +29,8 @@ TOOLS_EXTRA: Final = "pip install 'fastcs-ethercat[tools]'"
 
 @dataclass(frozen=True)
 class DemoHints:
-    """The demo's prefix, ports and PV names: enough to say how to read one."""
+    """The demo's ports and PV names: enough to say how to read one."""
 
-    prefix: str
     ports: DemoPorts
     names: Sequence[str]
 
@@ -39,9 +38,10 @@ class DemoHints:
         if not self.ports.moved:
             return []
         return [
-            f"demo: CA port {CA_SERVER_PORT} is taken on this host (another IOC?): "
-            f"serving CA on {self.ports.ca}, PVA on {self.ports.pva} "
-            f"(search port {self.ports.pva_broadcast}); the lines below say so"
+            f"demo: port {CA_SERVER_PORT} (CA) or {PVA_SERVER_PORT} (PVA) is taken "
+            f"on this host (another IOC?): serving CA on {self.ports.ca}, PVA on "
+            f"{self.ports.pva} (search port {self.ports.pva_broadcast}); the lines "
+            "below carry these ports"
         ]
 
     def try_lines(self) -> list[str]:

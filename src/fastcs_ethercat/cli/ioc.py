@@ -17,7 +17,7 @@ import logging
 import os
 import sys
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated
 
 import typer
 
@@ -149,11 +149,11 @@ def demo_command(
             DEMO_CONFIG,
             {"prefix": prefix, "target": sim.pyads_ip, "ams_net_id": sim.net_id},
         )
-        served: list[Any] = []
+        served: list[app.Ioc] = []
 
         def ready() -> None:
             entries = served[0].tree.pvs()
-            hints = DemoHints(prefix, ports, [entry.name for entry in entries])
+            hints = DemoHints(ports, [entry.name for entry in entries])
             print(f"demo: simulator on {sim.pyads_ip} (NetId {sim.net_id})")
             for line in hints.port_lines():
                 print(line)
