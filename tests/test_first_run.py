@@ -73,7 +73,7 @@ def test_fresh_clone_command_1_then_the_printed_line_reads_a_value(
         token,
     )
     try:
-        line = demo.wait_for_line(r"^demo: try .* caget ", 120)
+        line = demo.wait_for_line(r"^demo: try .*/caget ", 120)
         pasted = line.split("demo: try", 1)[1].strip()
         bare_shell = {
             "PATH": os.environ.get("PATH", "/usr/bin:/bin"),

@@ -92,6 +92,6 @@ def test_demo_prints_lines_that_read_numbers_and_text_from_a_bare_shell(
     caget_out, pvget_out, text_out = outputs
     assert caget_out.split()[0] == pv and -32768 <= int(caget_out.split()[1]) <= 32767
     assert pv in pvget_out
-    assert text_out.split(maxsplit=1) == [f"{prefix}:ETH1:RIO1:MOD5:AlStateText", "OP"]
+    assert text_out.split() == [f"{prefix}:ETH1:RIO1:MOD5:AlStateText", "OP"]
     assert pv in names and len(names) > 400
     assert listing.parent.stat().st_mode & 0o777 == 0o700
