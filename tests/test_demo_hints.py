@@ -98,3 +98,16 @@ def test_an_unwritable_temp_folder_is_not_fatal(
 
     assert line.startswith("demo: 1 PVs (could not write their list: ")
     assert "--list-pvs" in line
+
+
+def test_in_a_container_the_lines_name_the_hosts_tools(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    marker = tmp_path / ".containerenv"
+    marker.write_text("")
+    monkeypatch.setattr(demo_hints, "CONTAINER_MARKERS", (marker,))
+    hints = DemoHints(DemoPorts(5064, 5075, 5076, moved=False), NAMES)
+
+    caget = shlex.split(hints.try_lines()[1].split(" ", 2)[2])
+
+    assert caget[3:] == ["caget", NAMES[0]]

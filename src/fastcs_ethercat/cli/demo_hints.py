@@ -82,10 +82,15 @@ class DemoHints:
         }
 
 
+CONTAINER_MARKERS: Final = (Path("/run/.containerenv"), Path("/.dockerenv"))
+
+
 def _tool(name: str) -> str:
-    """The venv's own copy of an EPICS tool if it has one, else the bare name."""
+    """The venv's own copy of an EPICS tool if it has one, else the bare name
+    (also in a container: its paths mean nothing to the host's shell)."""
     beside = Path(sys.executable).parent / name
-    return str(beside) if beside.is_file() else name
+    in_container = any(marker.exists() for marker in CONTAINER_MARKERS)
+    return str(beside) if beside.is_file() and not in_container else name
 
 
 def _command(env: dict[str, str], tool: str, *args: str) -> str:
