@@ -55,7 +55,8 @@ RUN --mount=type=bind,from=wheels,source=/wheels,target=/wheels \
     && ln -s "$shipped" /epics/ioc/terminals
 
 ENV PATH=/venv/bin:$PATH \
-    PYTHONUNBUFFERED=1
+    PYTHONUNBUFFERED=1 \
+    FASTCS_ETHERCAT_IMAGE=1
 WORKDIR /epics/ioc
 USER ioc
 # EPICS CA (5064/tcp+udp, repeater 5065/udp) and PVA (5075/tcp, 5076/udp).

@@ -100,12 +100,10 @@ def test_an_unwritable_temp_folder_is_not_fatal(
     assert "--list-pvs" in line
 
 
-def test_in_a_container_the_lines_name_the_hosts_tools(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+def test_in_the_image_the_lines_name_the_hosts_tools(
+    monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    marker = tmp_path / ".containerenv"
-    marker.write_text("")
-    monkeypatch.setattr(demo_hints, "CONTAINER_MARKERS", (marker,))
+    monkeypatch.setenv(demo_hints.IMAGE_VARIABLE, "1")
     hints = DemoHints(DemoPorts(5064, 5075, 5076, moved=False), NAMES)
 
     caget = shlex.split(hints.try_lines()[1].split(" ", 2)[2])

@@ -82,15 +82,16 @@ class DemoHints:
         }
 
 
-CONTAINER_MARKERS: Final = (Path("/run/.containerenv"), Path("/.dockerenv"))
+IMAGE_VARIABLE: Final = "FASTCS_ETHERCAT_IMAGE"
+"""Set in the image: its paths mean nothing to the host's shell, where the
+lines are pasted, so they name the tools bare."""
 
 
 def _tool(name: str) -> str:
-    """The venv's own copy of an EPICS tool if it has one, else the bare name
-    (also in a container: its paths mean nothing to the host's shell)."""
+    """The venv's own copy of an EPICS tool if it has one, else the bare name."""
     beside = Path(sys.executable).parent / name
-    in_container = any(marker.exists() for marker in CONTAINER_MARKERS)
-    return str(beside) if beside.is_file() and not in_container else name
+    in_image = bool(os.environ.get(IMAGE_VARIABLE))
+    return str(beside) if beside.is_file() and not in_image else name
 
 
 def _command(env: dict[str, str], tool: str, *args: str) -> str:
