@@ -1,4 +1,5 @@
-"""Shared test helpers: where things are, and the loopback-only EPICS env."""
+"""Shared test helpers: where things are, the loopback-only EPICS env, and the
+session's guards (`tests/session_guards.py`)."""
 
 from __future__ import annotations
 
@@ -8,11 +9,24 @@ from pathlib import Path
 import pytest
 
 from fastcs_ethercat.loopback import EPICS_LOOPBACK_ENV as LOOPBACK
+from tests.session_guards import pytest_configure as pytest_configure
+from tests.session_guards import pytest_fixture_setup as pytest_fixture_setup
+from tests.session_guards import pytest_runtest_makereport as pytest_runtest_makereport
+from tests.session_guards import pytest_runtest_protocol as pytest_runtest_protocol
+from tests.session_guards import pytest_sessionfinish as pytest_sessionfinish
+from tests.session_guards import pytest_terminal_summary as pytest_terminal_summary
+from tests.session_guards import pytest_unconfigure as pytest_unconfigure
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
-SHARED_ESI = REPO_ROOT.parent / "shared" / "esi"
 TERMINALS_DIR = REPO_ROOT / "terminals"
 TEST_DATA = Path(__file__).resolve().parent / "data"
+
+SHARED_ESI = REPO_ROOT.parent / "shared" / "esi"
+"""The full set of real Beckhoff ESI files, beside the clone (not in it)."""
+ESI_SUBSET = TEST_DATA / "esi" / "beckhoff"
+"""The devices the tests use, cut from `SHARED_ESI` (see its README)."""
+EL3356_FIXTURE = TEST_DATA / "esi" / "EL3356-0010-fixture.xml"
+"""A hand-written EL3356-0010: no public copy of its ESI exists."""
 
 #: Every EPICS process in tests runs with these: loopback only, no broadcast.
 EPICS_LOOPBACK_ENV: dict[str, str] = dict(LOOPBACK)
@@ -31,6 +45,7 @@ def loopback_env(**extra: str) -> dict[str, str]:
 
 @pytest.fixture(scope="session")
 def shared_esi() -> Path:
-    """The real Beckhoff ESI files the project tests against."""
-    assert SHARED_ESI.is_dir(), f"expected the shared ESI files at {SHARED_ESI}"
+    """The full set of real ESI files, for tests about every device of it."""
+    if not SHARED_ESI.is_dir():
+        pytest.skip("needs the full Beckhoff ESI set in ../shared/esi")
     return SHARED_ESI

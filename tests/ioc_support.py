@@ -5,18 +5,16 @@ process) with CA and PVA on free loopback ports of its own, so it cannot meet
 another test's IOC. Real clients talk to it: the `caget`/`caput`/`pvget`
 binaries of the venv (their wrappers always exit 0, so their output is what
 counts), aioca (in a subprocess: its CA context is one per process) and p4p.
-Everything started is killed by PID at the end, including any caRepeater the
-IOC or the clients spawned (found by a token in their environment).
+They all share the session's CA repeater (`tests/ca_repeater.py`), so none
+spawns a caRepeater. Everything started is stopped by PID at the end,
+including whatever the IOC spawned (found by a token in its environment).
 """
 
 from __future__ import annotations
 
 import contextlib
-import os
 import queue
 import re
-import secrets
-import signal
 import socket
 import subprocess
 import sys
@@ -31,10 +29,10 @@ from p4p.client.thread import Context
 
 from fastcs_ethercat.sim.process import SimProcess
 from tests.conftest import TERMINALS_DIR, loopback_env
+from tests.processes import TOKEN_VARIABLE, new_token, processes_with_token, stop_pid
 
 BIN = Path(sys.executable).parent
 START_TIMEOUT = 90.0
-TOKEN_VARIABLE = "FASTCS_ETHERCAT_TEST_TOKEN"
 
 
 def free_port(tcp: bool, udp: bool) -> int:
@@ -61,19 +59,15 @@ def free_port(tcp: bool, udp: bool) -> int:
 
 
 def ioc_env(token: str) -> dict[str, str]:
-    """Loopback EPICS settings on free ports, tagged with `token`."""
+    """Loopback EPICS settings on free ports, tagged with `token` (the CA
+    repeater port is the session's)."""
     return loopback_env(
         EPICS_CA_SERVER_PORT=str(free_port(tcp=True, udp=True)),
-        EPICS_CA_REPEATER_PORT=str(free_port(tcp=False, udp=True)),
         EPICS_PVA_SERVER_PORT=str(free_port(tcp=True, udp=False)),
         EPICS_PVA_BROADCAST_PORT=str(free_port(tcp=False, udp=True)),
         PYTHONUNBUFFERED="1",
         **{TOKEN_VARIABLE: token},
     )
-
-
-def new_token() -> str:
-    return secrets.token_hex(8)
 
 
 @dataclass
@@ -160,37 +154,6 @@ def start_ioc(
     )
     reader.start()
     return IocProcess(process, prefix, env, token, lines, reader=reader)
-
-
-def processes_with_token(token: str) -> list[int]:
-    """PIDs whose environment carries our token (the IOC's caRepeater too)."""
-    found = []
-    marker = f"{TOKEN_VARIABLE}={token}".encode()
-    for entry in Path("/proc").iterdir():
-        if not entry.name.isdigit() or int(entry.name) == os.getpid():
-            continue
-        try:
-            if marker in (entry / "environ").read_bytes().split(b"\0"):
-                found.append(int(entry.name))
-        except OSError:
-            continue
-    return found
-
-
-def stop_pid(pid: int) -> None:
-    """SIGTERM, then SIGKILL after 5 s, one PID."""
-    try:
-        os.kill(pid, signal.SIGTERM)
-    except ProcessLookupError:
-        return
-    for _ in range(50):
-        try:
-            os.kill(pid, 0)
-        except ProcessLookupError:
-            return
-        time.sleep(0.1)
-    with contextlib.suppress(ProcessLookupError):
-        os.kill(pid, signal.SIGKILL)
 
 
 def caget(ioc: IocProcess, *flags_and_names: str) -> dict[str, str]:

@@ -65,6 +65,8 @@ def is_number(value: Any) -> bool:
     return isinstance(value, int | float) and not isinstance(value, bool)
 
 
+@pytest.mark.e2e
+@pytest.mark.perf
 def test_the_document_has_every_key(document: dict[str, Any]) -> None:
     assert set(REQUIRED_KEYS) <= document.keys()
     assert document["machine"]["cores"] >= 1
@@ -74,6 +76,8 @@ def test_the_document_has_every_key(document: dict[str, Any]) -> None:
     json.dumps(document)  # JSON-ready as it is
 
 
+@pytest.mark.e2e
+@pytest.mark.perf
 def test_start_gives_seconds_and_memory_per_chain_size(
     document: dict[str, Any],
 ) -> None:
@@ -84,6 +88,8 @@ def test_start_gives_seconds_and_memory_per_chain_size(
     assert detail["ready_line_s"] <= detail["start_s"]
 
 
+@pytest.mark.e2e
+@pytest.mark.perf
 def test_latency_has_median_and_p99(document: dict[str, Any]) -> None:
     figures = document["latency_ms"]["20"]
     assert "error" not in figures, figures
@@ -91,6 +97,8 @@ def test_latency_has_median_and_p99(document: dict[str, Any]) -> None:
     assert figures["samples"] == TINY.latency_samples
 
 
+@pytest.mark.e2e
+@pytest.mark.perf
 def test_the_summary_and_json_file(document: dict[str, Any], tmp_path: Path) -> None:
     lines = summary_lines(document)
     assert any(line.startswith("latency @20 Hz") for line in lines)

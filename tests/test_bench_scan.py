@@ -13,6 +13,8 @@ from fastcs_ethercat.bench.report import SCAN_KEYS
 from fastcs_ethercat.bench.runner import run_bench
 from tests.test_bench_runner import bench_context, is_number
 
+pytestmark = [pytest.mark.e2e, pytest.mark.perf]
+
 
 @pytest.fixture(scope="module")
 def document() -> dict[str, Any]:

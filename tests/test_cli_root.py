@@ -10,6 +10,8 @@ import pytest
 
 from fastcs_ethercat import __version__
 
+pytestmark = pytest.mark.e2e
+
 
 def test_version_flag_prints_version() -> None:
     done = subprocess.run(

@@ -24,18 +24,10 @@ import yaml
 
 from fastcs_ethercat.sim.process import SimProcess
 from tests.conftest import REPO_ROOT
-from tests.ioc_support import (
-    IocProcess,
-    caget,
-    ioc_env,
-    new_token,
-    processes_with_token,
-    start_ioc,
-    stop_pid,
-    wait_for,
-)
+from tests.ioc_support import IocProcess, caget, ioc_env, start_ioc, wait_for
+from tests.processes import new_token, processes_with_token, stop_pid
 
-pytestmark = [pytest.mark.e2e, pytest.mark.perf]
+pytestmark = [pytest.mark.e2e, pytest.mark.perf, pytest.mark.slow]
 
 IMAGE = "localhost/fastcs-ethercat:test"
 PODMAN = str(REPO_ROOT / "deploy" / "podman.sh")

@@ -41,6 +41,7 @@ def _yaml(path: Path) -> Any:
     return yaml.safe_load(path.read_text(encoding="utf-8"))
 
 
+@pytest.mark.e2e
 def test_the_committed_schema_is_what_ioc_schema_prints() -> None:
     printed = subprocess.run(
         [sys.executable, "-m", "fastcs_ethercat", "ioc", "schema"],
@@ -119,25 +120,31 @@ def test_resources_hold_the_measured_ioc() -> None:
     assert mebibytes(resources["limits"]["memory"]) >= 519  # 500 terminals
 
 
+def _normal(name: str) -> str:
+    """A package name as PyPI compares them (PEP 503)."""
+    return re.sub(r"[-_.]+", "-", name).lower()
+
+
 def test_the_lock_pins_every_dependency_within_its_bounds() -> None:
     project = tomllib.loads((REPO_ROOT / "pyproject.toml").read_text())["project"]
     wanted = [Requirement(text) for text in project["dependencies"]]
     wanted += [Requirement(t) for t in project["optional-dependencies"]["tools"]]
     lock_text = (DEPLOY / "requirements.lock").read_text(encoding="utf-8")
     pins = {
-        name.lower().replace("_", "-"): version
+        _normal(name): version
         for name, version in re.findall(
             r"^([A-Za-z0-9_.-]+)==(\S+) \\", lock_text, re.M
         )
     }
 
     for requirement in wanted:
-        name = requirement.name.lower().replace("_", "-")
+        name = _normal(requirement.name)
         assert name in pins, f"{name} is not in deploy/requirements.lock"
         assert requirement.specifier.contains(pins[name]), (requirement, pins[name])
     assert "--hash=sha256:" in lock_text
 
 
+@pytest.mark.e2e
 def test_the_ci_workflow_is_valid_offline() -> None:
     checker = Path(sys.executable).parent / "check-jsonschema"
     workflows = sorted((REPO_ROOT / ".github" / "workflows").glob("*.yml"))

@@ -14,12 +14,10 @@ import pytest
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.esi import EsiCatalog, build_catalog
 from fastcs_ethercat.esi import catalog as catalog_module
+from tests.conftest import EL3356_FIXTURE as FIXTURE
+from tests.conftest import ESI_SUBSET as ESI
 
-REPO = Path(__file__).resolve().parents[1]
-SHARED_ESI = REPO / ".." / "shared" / "esi"
-FIXTURE = Path(__file__).resolve().parent / "data" / "esi" / "EL3356-0010-fixture.xml"
-
-# Devices per file, from shared/esi/SOURCES.md.
+# Devices per file of the full set, from shared/esi/SOURCES.md.
 DEVICES_PER_FILE = {
     "Beckhoff EK11xx.xml": 19,
     "Beckhoff EL1xxx.xml": 141,
@@ -44,23 +42,20 @@ DLS_TERMINALS = [
 ]  # fmt: skip
 
 
-def relative_name(source: str) -> str:
-    return Path(source).resolve().relative_to(SHARED_ESI.resolve()).as_posix()
+def relative_name(source: str, root: Path = ESI) -> str:
+    return Path(source).resolve().relative_to(root.resolve()).as_posix()
 
 
 @pytest.fixture(scope="module")
 def catalog(tmp_path_factory: pytest.TempPathFactory) -> Iterator[EsiCatalog]:
     with pytest.MonkeyPatch.context() as patch:
         patch.setenv("XDG_CACHE_HOME", str(tmp_path_factory.mktemp("xdg-cache")))
-        yield build_catalog([SHARED_ESI, FIXTURE])
+        yield build_catalog([ESI, FIXTURE])
 
 
-def test_every_file_lists_its_documented_device_count(catalog: EsiCatalog) -> None:
-    counts = Counter(
-        relative_name(entry.source)
-        for entry in catalog.entries
-        if entry.source != str(FIXTURE)
-    )
+def test_every_file_lists_its_documented_device_count(shared_esi: Path) -> None:
+    catalog = build_catalog(shared_esi, use_cache=False)
+    counts = Counter(relative_name(e.source, shared_esi) for e in catalog.entries)
     assert counts == DEVICES_PER_FILE
     assert catalog.warnings == ()
 
@@ -143,7 +138,7 @@ def test_device_lines_are_the_lines_of_the_device_tags(catalog: EsiCatalog) -> N
 def _copy_small_files(target: Path) -> Path:
     target.mkdir()
     for name in ("Beckhoff EK11xx.xml", "Beckhoff EL47xx.xml"):
-        shutil.copy(SHARED_ESI / name, target / name)
+        shutil.copy(ESI / name, target / name)
     return target
 
 
@@ -153,7 +148,7 @@ def test_second_listing_is_answered_from_the_cache(
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
     source = _copy_small_files(tmp_path / "esi")
     first = build_catalog(source)
-    assert len(first) == 19 + 6
+    assert len(first) == 8 + 4  # EK1100 x5, EK1122 x3; EL4732 x4
     assert list((tmp_path / "cache" / "fastcs-ethercat" / "esi-catalog").iterdir())
 
     def no_scanning(data: bytes, name: str) -> object:
@@ -169,14 +164,14 @@ def test_changed_content_is_scanned_again(
 ) -> None:
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
     source = _copy_small_files(tmp_path / "esi")
-    assert len(build_catalog(source)) == 25
+    assert len(build_catalog(source)) == 12
     target = source / "Beckhoff EL47xx.xml"
     data = target.read_bytes()
     starts = [match.start() for match in re.finditer(rb"<Device[\s>]", data)]
     cut = starts[1]  # keep the first device only
     target.write_bytes(data[:cut] + b"</Devices></Descriptions></EtherCATInfo>\r\n")
     again = build_catalog(source)
-    assert len(again) == 19 + 1
+    assert len(again) == 8 + 1
 
 
 def test_listing_without_cache_writes_nothing(
@@ -193,12 +188,12 @@ def test_beckhoff_zip_is_a_source(
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
     archive = tmp_path / "Beckhoff_EtherCAT_XML.zip"
     with zipfile.ZipFile(archive, "w", zipfile.ZIP_DEFLATED) as zipped:
-        zipped.write(SHARED_ESI / "Beckhoff EL15xx.xml", "Beckhoff EL15xx.xml")
-        zipped.write(SHARED_ESI / "Beckhoff EK11xx.xml", "Beckhoff EK11xx.xml")
+        zipped.write(ESI / "Beckhoff EL15xx.xml", "Beckhoff EL15xx.xml")
+        zipped.write(ESI / "Beckhoff EK11xx.xml", "Beckhoff EK11xx.xml")
         zipped.writestr("readme.txt", "not an ESI file")
     for attempt in ("cold", "warm"):
         catalog = build_catalog(archive)
-        assert len(catalog) == 15 + 19, attempt
+        assert len(catalog) == 10 + 8, attempt  # EL1502 x9, EL1512; EK11xx
         entry = catalog.find("EL1502")
         assert entry.source == f"{archive}!Beckhoff EL15xx.xml"
         device = catalog.load("EL1502")

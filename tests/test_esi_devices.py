@@ -10,14 +10,17 @@ import pytest
 
 from fastcs_ethercat.esi import EsiDevice, EsiParseResult, parse_all
 from fastcs_ethercat.esi.files import device_elements, parse_device_element, read_root
-
-REPO = Path(__file__).resolve().parents[1]
-SHARED_ESI = REPO / ".." / "shared" / "esi"
+from tests.conftest import ESI_SUBSET as ESI
 
 
 @pytest.fixture(scope="module")
 def parsed() -> EsiParseResult:
-    return parse_all(SHARED_ESI, strict=True)
+    return parse_all(ESI, strict=True)
+
+
+@pytest.fixture(scope="module")
+def parsed_in_full(shared_esi: Path) -> EsiParseResult:
+    return parse_all(shared_esi, strict=True)
 
 
 def find(parsed: EsiParseResult, type_name: str, revision: int) -> EsiDevice:
@@ -28,21 +31,24 @@ def find(parsed: EsiParseResult, type_name: str, revision: int) -> EsiDevice:
     return matches[0]
 
 
-def file_of(device: EsiDevice) -> str:
-    return Path(device.source).resolve().relative_to(SHARED_ESI.resolve()).as_posix()
+def file_of(device: EsiDevice, root: Path) -> str:
+    return Path(device.source).resolve().relative_to(root.resolve()).as_posix()
 
 
-def test_every_device_of_every_file_parses(parsed: EsiParseResult) -> None:
+def test_every_device_of_every_file_parses(
+    parsed_in_full: EsiParseResult, shared_esi: Path
+) -> None:
+    parsed = parsed_in_full
     assert parsed.warnings == ()
     assert len(parsed.devices) == 506
-    counts = Counter(file_of(device) for device in parsed.devices)
+    counts = Counter(file_of(device, shared_esi) for device in parsed.devices)
     assert counts["Beckhoff EL1xxx.xml"] == 141
     assert counts["2011-08/Beckhoff EL3xxx.xml"] == 28
     assert counts["Beckhoff ELM37xx.xml"] == 1
 
 
-def test_every_device_is_consistent(parsed: EsiParseResult) -> None:
-    for device in parsed.devices:
+def test_every_device_is_consistent(parsed_in_full: EsiParseResult) -> None:
+    for device in parsed_in_full.devices:
         assert device.vendor_id == 2
         assert device.description
         pdo_indices = {pdo.index for pdo in device.pdos}
@@ -249,7 +255,7 @@ def test_coupler_without_pdos(parsed: EsiParseResult) -> None:
 def test_shared_elements_parse_like_fresh_ones(parsed: EsiParseResult) -> None:
     # parse_all reuses identical PDOs/types/objects within a document; the
     # result must equal a device parsed on its own.
-    source = SHARED_ESI / "Beckhoff EL31xx.xml"
+    source = ESI / "Beckhoff EL31xx.xml"
     root = read_root(source.read_bytes(), str(source))
     memoised = {
         (d.type_name, d.revision): d

@@ -3,23 +3,20 @@
 from __future__ import annotations
 
 from collections.abc import Iterator
-from pathlib import Path
 
 import pytest
 
 from fastcs_ethercat.esi import EsiCatalog, EsiDevice, build_catalog
 from fastcs_ethercat.esi.groups import groups_from_excludes
-
-REPO = Path(__file__).resolve().parents[1]
-SHARED_ESI = REPO / ".." / "shared" / "esi"
-FIXTURE = Path(__file__).resolve().parent / "data" / "esi" / "EL3356-0010-fixture.xml"
+from tests.conftest import EL3356_FIXTURE as FIXTURE
+from tests.conftest import ESI_SUBSET as ESI
 
 
 @pytest.fixture(scope="module")
 def catalog(tmp_path_factory: pytest.TempPathFactory) -> Iterator[EsiCatalog]:
     with pytest.MonkeyPatch.context() as patch:
         patch.setenv("XDG_CACHE_HOME", str(tmp_path_factory.mktemp("xdg-cache")))
-        yield build_catalog([SHARED_ESI, FIXTURE])
+        yield build_catalog([ESI, FIXTURE])
 
 
 def groups(device: EsiDevice) -> dict[str, tuple[int, ...]]:

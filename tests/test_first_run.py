@@ -17,16 +17,16 @@ from pathlib import Path
 import pytest
 
 from tests.conftest import REPO_ROOT
-from tests.ioc_support import (
+from tests.ioc_support import ioc_env, start_ioc
+from tests.processes import (
+    SESSION_VARIABLE,
     TOKEN_VARIABLE,
-    ioc_env,
     new_token,
     processes_with_token,
-    start_ioc,
     stop_pid,
 )
 
-pytestmark = pytest.mark.e2e
+pytestmark = [pytest.mark.e2e, pytest.mark.slow]
 
 DEMO_STEP = " && .venv/bin/fastcs-ethercat demo"
 
@@ -75,10 +75,12 @@ def test_fresh_clone_command_1_then_the_printed_line_reads_a_value(
     try:
         line = demo.wait_for_line(r"^demo: try .*/caget ", 120)
         pasted = line.split("demo: try", 1)[1].strip()
-        bare_shell = {
+        bare_shell = {  # no EPICS settings but the session's one CA repeater
             "PATH": os.environ.get("PATH", "/usr/bin:/bin"),
             "HOME": str(tmp_path),
+            "EPICS_CA_REPEATER_PORT": os.environ.get("EPICS_CA_REPEATER_PORT", ""),
             TOKEN_VARIABLE: token,
+            SESSION_VARIABLE: os.environ.get(SESSION_VARIABLE, ""),
         }
         read = subprocess.run(
             ["bash", "-c", pasted],

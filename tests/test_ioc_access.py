@@ -55,6 +55,7 @@ ASG(COE) {
 """
 
 
+@pytest.mark.e2e
 def test_the_example_acf_parses_and_defines_the_groups_the_ioc_assigns() -> None:
     check_acf(EXAMPLE_ACF)
     groups = re.findall(r"^ASG\((\w+)\)", EXAMPLE_ACF.read_text(), re.MULTILINE)
@@ -64,6 +65,7 @@ def test_the_example_acf_parses_and_defines_the_groups_the_ioc_assigns() -> None
     assert ACCESS_SECURITY_CONFIG_KEY in EXAMPLE_ACF.read_text()
 
 
+@pytest.mark.e2e
 @pytest.mark.parametrize(
     ("text", "expected"),
     [
@@ -91,6 +93,7 @@ def test_a_broken_acf_is_one_line_naming_file_and_line(
     assert "\n" not in str(raised.value)
 
 
+@pytest.mark.e2e
 def test_read_only_acf_adds_a_group_without_write_rules(tmp_path: Path) -> None:
     open_default = read_only_acf(None, tmp_path)
     check_acf(open_default)
@@ -128,6 +131,7 @@ def ioc(tmp_path_factory: pytest.TempPathFactory) -> Iterator[IocProcess]:
         process.stop()
 
 
+@pytest.mark.e2e
 def test_records_carry_the_assigned_groups(ioc: IocProcess) -> None:
     fields = caget(
         ioc,
@@ -143,6 +147,7 @@ def test_records_carry_the_assigned_groups(ioc: IocProcess) -> None:
     assert fields.get(ioc.pv("Output_RBV.ASG"), "") == ""
 
 
+@pytest.mark.e2e
 def test_caput_to_restricted_records_is_refused_and_reads_still_work(
     ioc: IocProcess,
 ) -> None:
@@ -161,6 +166,7 @@ def test_caput_to_restricted_records_is_refused_and_reads_still_work(
     }
 
 
+@pytest.mark.e2e
 def test_caput_to_a_default_group_record_still_writes(ioc: IocProcess) -> None:
     answer = ioc.tool("caput", ioc.pv("Setting"), "11")
     readback = wait_for(
@@ -171,6 +177,7 @@ def test_caput_to_a_default_group_record_still_writes(ioc: IocProcess) -> None:
     assert readback
 
 
+@pytest.mark.e2e
 def test_the_acf_does_not_reach_pva_puts(ioc: IocProcess) -> None:
     """A limit, pinned: FastCS's p4p server does not consult the ACF."""
     with ioc.p4p_context() as context:
@@ -180,6 +187,7 @@ def test_the_acf_does_not_reach_pva_puts(ioc: IocProcess) -> None:
     assert changed
 
 
+@pytest.mark.e2e
 def test_check_acf_leaves_this_process_alone(tmp_path: Path) -> None:
     """The parse runs in a child: this process's EPICS state is untouched."""
     done = subprocess.run(
@@ -200,6 +208,7 @@ def test_check_acf_leaves_this_process_alone(tmp_path: Path) -> None:
     assert done.stdout.strip() == "False", done.stderr
 
 
+@pytest.mark.e2e
 def test_read_only_ioc_shows_every_output_as_read_only() -> None:
     token = new_token()
     prefix = f"ROI{token[:6].upper()}"

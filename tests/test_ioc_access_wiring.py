@@ -7,6 +7,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from fastcs_ethercat.ioc.access import COE_GROUP, OUTPUTS_GROUP, access_group_of
 from fastcs_ethercat.ioc.attributes import attribute_for_coe, attribute_for_point
 from fastcs_ethercat.ioc.config import load_ioc_config
@@ -61,6 +63,7 @@ def test_config_key_is_relative_to_the_config_file(tmp_path: Path) -> None:
     assert load_ioc_config(config).access_security_file == tmp_path / "s.acf"
 
 
+@pytest.mark.e2e
 def test_bad_acf_is_one_line_and_exit_2(tmp_path: Path) -> None:
     config = tmp_path / "ioc.yaml"
     config.write_text("prefix: T\ntarget: 127.0.0.1:9\nams_net_id: 127.0.0.1.1.1\n")
@@ -88,6 +91,7 @@ def test_bad_acf_is_one_line_and_exit_2(tmp_path: Path) -> None:
     assert "Traceback" not in done.stderr
 
 
+@pytest.mark.e2e
 def test_the_example_acf_is_valid() -> None:
     from fastcs_ethercat.ioc.access import check_acf
 

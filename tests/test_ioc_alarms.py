@@ -231,6 +231,7 @@ def pvget_severities(ioc: IocProcess, names: Sequence[str]) -> dict[str, int]:
     return severities
 
 
+@pytest.mark.e2e
 def test_target_lost_shows_invalid_comm_everywhere_then_clears(
     ioc: IocProcess,
 ) -> None:
@@ -267,6 +268,7 @@ def test_target_lost_shows_invalid_comm_everywhere_then_clears(
     assert all(alarm["severity"] == 0 for alarm in cleared_pva.values())
 
 
+@pytest.mark.e2e
 def test_only_the_alarmed_attribute_goes_into_alarm(ioc: IocProcess) -> None:
     command(ioc, "alarm Mode MINOR STATE terminal left OP")
     wait_for(lambda: ca_alarms(ioc, ["Mode"])["Mode"])
@@ -281,6 +283,7 @@ def test_only_the_alarmed_attribute_goes_into_alarm(ioc: IocProcess) -> None:
     assert on_p4p["Temperature"]["severity"] == 0
 
 
+@pytest.mark.e2e
 def test_a_new_value_clears_the_alarm(ioc: IocProcess) -> None:
     command(ioc, "alarm Temperature INVALID READ")
     wait_for(lambda: ca_alarms(ioc, ["Temperature"])["Temperature"])
@@ -311,6 +314,7 @@ asyncio.run(main(sys.argv[1], float(sys.argv[2])))
 """
 
 
+@pytest.mark.e2e
 def test_a_monitor_sees_an_output_record_go_into_alarm_and_out(
     ioc: IocProcess,
 ) -> None:
@@ -340,6 +344,7 @@ def as_dict(value: Any) -> dict[str, Any]:
     return getattr(value, "raw", value).todict()
 
 
+@pytest.mark.e2e
 def test_a_refused_write_puts_the_output_in_alarm(ioc: IocProcess) -> None:
     """FastCS itself does this when the IO's send raises (an ADS write error)."""
     name = ioc.pv("Refusing")

@@ -16,7 +16,10 @@ from pathlib import Path
 import pytest
 
 from tests.conftest import REPO_ROOT
-from tests.ioc_support import TOKEN_VARIABLE, ioc_env, new_token, start_ioc
+from tests.ioc_support import ioc_env, start_ioc
+from tests.processes import SESSION_VARIABLE, TOKEN_VARIABLE, new_token
+
+pytestmark = pytest.mark.e2e
 
 pytestmark = pytest.mark.e2e
 
@@ -71,8 +74,13 @@ def test_demo_prints_lines_that_read_numbers_and_text_from_a_bare_shell(
     try:
         listed = demo.wait_for_line(r"^demo: \d+ PVs listed in ", 90)
         lines = [demo.wait_for_line(r"^demo: (try|text) ", 30) for _ in range(3)]
-        bare_shell = {"PATH": os.environ["PATH"], "HOME": str(tmp_path)}
-        bare_shell[TOKEN_VARIABLE] = token
+        bare_shell = {  # no EPICS settings but the session's one CA repeater
+            "PATH": os.environ["PATH"],
+            "HOME": str(tmp_path),
+            "EPICS_CA_REPEATER_PORT": os.environ.get("EPICS_CA_REPEATER_PORT", ""),
+            TOKEN_VARIABLE: token,
+            SESSION_VARIABLE: os.environ.get(SESSION_VARIABLE, ""),
+        }
         outputs = [
             subprocess.run(
                 ["bash", "-c", line.split(" ", 2)[2].strip()],

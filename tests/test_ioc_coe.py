@@ -54,6 +54,7 @@ async def coe(sim: SimProcess) -> AsyncIterator[SlaveCoe]:
         yield SlaveCoe(pool, MASTER_NET_ID, EL3104_ADDRESS)
 
 
+@pytest.mark.e2e
 async def test_read_defaults(coe: SlaveCoe) -> None:
     assert await coe.read(POINTS["ai_settings_8000_user_calibration_gain"]) == 0x4000
     assert await coe.read(POINTS["ai_settings_8000_enable_vendor_calibration"]) is True
@@ -62,6 +63,7 @@ async def test_read_defaults(coe: SlaveCoe) -> None:
     assert await coe.read(POINTS["device_name_1008"]) == "EL3104"
 
 
+@pytest.mark.e2e
 async def test_write_reads_back(coe: SlaveCoe) -> None:
     offset = POINTS["ai_settings_8010_user_scale_offset"]
     await coe.write(offset, -123)
@@ -77,6 +79,7 @@ async def test_write_reads_back(coe: SlaveCoe) -> None:
     assert await coe.read(presentation) == 2
 
 
+@pytest.mark.e2e
 async def test_refusals_are_ads_errors(coe: SlaveCoe) -> None:
     with pytest.raises(AdsError) as refused:
         await coe.write(POINTS["identity_1018_vendor_id"], 5)

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 from fastcs.datatypes import Bool, Enum, Float, Int, String, Waveform
@@ -21,8 +19,7 @@ from fastcs_ethercat.ioc.datatypes import (
     enum_class,
     to_fastcs,
 )
-
-ESI = Path(__file__).parents[1] / ".." / "shared" / "esi"
+from tests.conftest import ESI_SUBSET as ESI
 
 
 @pytest.fixture(scope="module")

@@ -44,6 +44,8 @@ from tests.ioc_support import (
     wait_for,
 )
 
+pytestmark = pytest.mark.e2e
+
 DEMO_CHAIN = REPO_ROOT / "ioc" / "demo-chain.yaml"
 MISSING_TYPE = "EL3202"  # Term 10: served by the generic controller
 COMPACT = "ETH1:RIO1:MOD5"  # Term 5 (EL3104) in its Compact PDOs
@@ -139,6 +141,7 @@ def demo(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Demo]:
                 stop_pid(ioc.process.pid)
 
 
+@pytest.mark.perf
 def test_start_figures(demo: Demo) -> None:
     print(
         f"\ndemo chain: --list-pvs {demo.figures['list_pvs_s']:.1f} s, "

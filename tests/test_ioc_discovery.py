@@ -52,6 +52,7 @@ def plan(sim: SimProcess, registry: TerminalRegistry) -> SystemPlan:
     return discover_now(sim, registry)
 
 
+@pytest.mark.e2e
 def test_system_and_master(plan: SystemPlan, sim: SimProcess) -> None:
     assert plan.net_id == sim.net_id
     assert plan.device_name == "I/O Server"
@@ -62,6 +63,7 @@ def test_system_and_master(plan: SystemPlan, sim: SimProcess) -> None:
     assert master.symbol_port == 27905
 
 
+@pytest.mark.e2e
 def test_every_slave_with_name_address_and_identity(
     plan: SystemPlan, registry: TerminalRegistry
 ) -> None:
@@ -83,6 +85,7 @@ def test_every_slave_with_name_address_and_identity(
         assert slave.link_state == 0
 
 
+@pytest.mark.e2e
 def test_terminals_matched_to_their_yaml(plan: SystemPlan) -> None:
     types = chain_types(DEMO_CHAIN)
     matched = [terminal.terminal_type for terminal in plan.masters[0].terminals]
@@ -90,6 +93,7 @@ def test_terminals_matched_to_their_yaml(plan: SystemPlan) -> None:
     assert all(terminal.exact_revision for terminal in plan.masters[0].terminals)
 
 
+@pytest.mark.e2e
 def test_coupler_tree(plan: SystemPlan) -> None:
     slaves = {t.slave.name: t.slave for t in plan.masters[0].terminals}
     couplers = sorted(name for name, slave in slaves.items() if slave.is_coupler)
@@ -106,6 +110,7 @@ def test_coupler_tree(plan: SystemPlan) -> None:
             assert slave.coupler == "Term 21 (EK1122)"
 
 
+@pytest.mark.e2e
 def test_master_points_from_inputs_and_outputs(plan: SystemPlan) -> None:
     points = {p.attribute: p for p in plan.masters[0].master_points}
     assert {"frm0_state", "frm0_wc_state", "slave_count", "dev_state"} <= set(points)
@@ -115,6 +120,7 @@ def test_master_points_from_inputs_and_outputs(plan: SystemPlan) -> None:
     assert not any(p.writable for p in points.values())
 
 
+@pytest.mark.e2e
 def test_dynamic_pdo_warnings(plan: SystemPlan) -> None:
     terminals = {t.slave.name: t for t in plan.masters[0].terminals}
     compact = terminals["Term 5 (EL3104)"]
@@ -126,6 +132,7 @@ def test_dynamic_pdo_warnings(plan: SystemPlan) -> None:
     assert set(plan.warnings) >= set(compact.warnings)
 
 
+@pytest.mark.e2e
 def test_discovery_is_stable(
     plan: SystemPlan, sim: SimProcess, registry: TerminalRegistry
 ) -> None:
@@ -144,6 +151,7 @@ def test_split_target() -> None:
     assert split_target("127.0.0.1:4000") == ("127.0.0.1", 4000)
 
 
+@pytest.mark.e2e
 async def test_symbol_version_follows_an_online_change(sim: SimProcess) -> None:
     async with ClientPool(sim.host, sim.tcp_port) as pool:
         device = await pool.get(sim.net_id, 27905)

@@ -80,6 +80,7 @@ def key(symbol: str) -> str:
     return f"Device 1 (EtherCAT)/{symbol}"
 
 
+@pytest.mark.e2e
 async def test_one_sum_read_per_cycle(
     sim: SimProcess, plan: SystemPlan, client: AdsClient
 ) -> None:
@@ -94,6 +95,7 @@ async def test_one_sum_read_per_cycle(
     assert poller.stats.requests == poller.stats.requests_per_cycle == 1
 
 
+@pytest.mark.e2e
 async def test_more_than_500_points_in_500_item_requests(
     sim: SimProcess, client: AdsClient
 ) -> None:
@@ -111,6 +113,7 @@ async def test_more_than_500_points_in_500_item_requests(
     assert len(recorder.changes[0]) == 1200
 
 
+@pytest.mark.e2e
 async def test_requests_split_at_the_chunk_size(
     sim: SimProcess, plan: SystemPlan, client: AdsClient
 ) -> None:
@@ -123,6 +126,7 @@ async def test_requests_split_at_the_chunk_size(
     assert requests <= math.ceil(len(points) / 25)
 
 
+@pytest.mark.e2e
 async def test_first_cycle_all_then_only_changes(
     sim: SimProcess, plan: SystemPlan, client: AdsClient
 ) -> None:
@@ -147,6 +151,7 @@ async def test_first_cycle_all_then_only_changes(
     assert key(f"{target}.Status.Overrange") not in recorder.last()
 
 
+@pytest.mark.e2e
 async def test_values_follow_the_signals(
     sim: SimProcess, plan: SystemPlan, client: AdsClient
 ) -> None:
@@ -166,6 +171,7 @@ async def test_values_follow_the_signals(
     assert -20000 <= now <= 20000
 
 
+@pytest.mark.e2e
 async def test_arrays_bits_and_counters_decoded(
     sim: SimProcess, plan: SystemPlan, client: AdsClient
 ) -> None:
@@ -187,6 +193,7 @@ async def test_arrays_bits_and_counters_decoded(
     assert isinstance(values[chosen[2].key], int)
 
 
+@pytest.mark.e2e
 async def test_item_errors_do_not_stop_the_others(
     plan: SystemPlan, client: AdsClient
 ) -> None:
@@ -201,6 +208,7 @@ async def test_item_errors_do_not_stop_the_others(
     assert poller.stats.item_errors == 1
 
 
+@pytest.mark.e2e
 async def test_whole_read_failure_reported_then_recovered(
     sim: SimProcess, plan: SystemPlan, client: AdsClient
 ) -> None:
@@ -218,6 +226,7 @@ async def test_whole_read_failure_reported_then_recovered(
     assert {p.key for p, _ in recorder.changes[-1]} == {p.key for p in points}
 
 
+@pytest.mark.e2e
 async def test_writes_reach_the_simulator(
     sim: SimProcess, plan: SystemPlan, client: AdsClient
 ) -> None:
@@ -242,6 +251,7 @@ async def test_writes_reach_the_simulator(
     assert sim.get_symbol("Term 16 (EL4732).Ch2 Sample 0") == samples
 
 
+@pytest.mark.e2e
 async def test_run_keeps_its_rate(plan: SystemPlan, client: AdsClient) -> None:
     recorder = Recorder()
     poller = Poller(client, all_points(plan), recorder.on_changes)

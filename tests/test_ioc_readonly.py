@@ -27,6 +27,8 @@ from tests.ioc_support import (
     wait_for,
 )
 
+pytestmark = pytest.mark.e2e
+
 CHAIN = """\
 system:
   net_id: 127.0.0.1.1.1

@@ -103,6 +103,7 @@ def terminal(plan: SystemPlan, device: int, name: str) -> TerminalPlan:
     return next(t for t in master.terminals if t.slave.name == name)
 
 
+@pytest.mark.e2e
 def test_two_masters(plan: SystemPlan) -> None:
     masters = [(m.device_id, m.name, m.net_id, m.symbol_port) for m in plan.masters]
     assert masters == [
@@ -117,6 +118,7 @@ def test_two_masters(plan: SystemPlan) -> None:
         }
 
 
+@pytest.mark.e2e
 def test_compact_group_detected_with_warning(plan: SystemPlan) -> None:
     compact = terminal(plan, 1, "Term 2 (EL3104)")
     assert compact.active_group == "Compact"
@@ -137,6 +139,7 @@ def test_compact_group_detected_with_warning(plan: SystemPlan) -> None:
     assert not value.writable
 
 
+@pytest.mark.e2e
 def test_standard_group_members_and_status_bits(plan: SystemPlan) -> None:
     standard = terminal(plan, 2, "Term 8 (EL3104)")
     assert standard.active_group == "Standard"
@@ -161,6 +164,7 @@ def test_standard_group_members_and_status_bits(plan: SystemPlan) -> None:
     assert overrange.symbol.endswith("AI Standard Channel 2.Status.Overrange")
 
 
+@pytest.mark.e2e
 def test_counter_in_its_second_group(plan: SystemPlan) -> None:
     counter = terminal(plan, 2, "Term 7 (EL1502)")
     assert counter.active_group == "2Ch. Counter"
@@ -172,6 +176,7 @@ def test_counter_in_its_second_group(plan: SystemPlan) -> None:
     assert points["cnt_outputs_channel_1_set_counter_value"].writable
 
 
+@pytest.mark.e2e
 def test_oversampling_length_from_the_live_table(plan: SystemPlan) -> None:
     oversampled = terminal(plan, 1, "Term 5 (EL3702)")
     samples = [p for p in oversampled.points if p.kind is PointKind.ARRAY]
@@ -180,6 +185,7 @@ def test_oversampling_length_from_the_live_table(plan: SystemPlan) -> None:
         assert (point.length, point.type_name, point.byte_size) == (4, "INT", 8)
 
 
+@pytest.mark.e2e
 def test_unknown_terminal_gets_a_generic_plan(
     resolved: tuple[SystemPlan, dict[int, list[AdsSymbolEntry]]],
 ) -> None:
@@ -197,6 +203,7 @@ def test_unknown_terminal_gets_a_generic_plan(
     assert len(attributes) == len(generic.points)
 
 
+@pytest.mark.e2e
 def test_points_sit_where_the_live_table_says(
     resolved: tuple[SystemPlan, dict[int, list[AdsSymbolEntry]]],
 ) -> None:
@@ -218,6 +225,7 @@ def test_points_sit_where_the_live_table_says(
                 )
 
 
+@pytest.mark.e2e
 def test_attributes_unique_per_terminal(plan: SystemPlan) -> None:
     for master in plan.masters:
         for plan_terminal in master.terminals:
@@ -226,6 +234,7 @@ def test_attributes_unique_per_terminal(plan: SystemPlan) -> None:
             assert all(name == snake_case(name) for name in names)
 
 
+@pytest.mark.e2e
 def test_yaml_bit_offsets_when_the_type_is_not_listed(
     plan: SystemPlan, registry: TerminalRegistry
 ) -> None:

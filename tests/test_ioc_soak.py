@@ -27,6 +27,8 @@ from tests.test_ioc_faults import (
     _config,
 )
 
+pytestmark = pytest.mark.e2e
+
 SOAK_SECONDS = float(os.environ.get("FASTCS_ETHERCAT_SOAK_SECONDS", "45"))
 """45 s in the suite; set the variable to soak longer by hand."""
 FAULTS: list[tuple[str, dict[str, Any], float]] = [

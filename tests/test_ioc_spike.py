@@ -29,6 +29,8 @@ from tests.ioc_support import (
     wait_for,
 )
 
+pytestmark = pytest.mark.e2e
+
 TERMINAL = "ETH1:RIO1:MOD5"
 
 

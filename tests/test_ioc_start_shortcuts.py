@@ -10,7 +10,11 @@ import subprocess
 import sys
 import textwrap
 
+import pytest
+
 from .conftest import loopback_env
+
+pytestmark = pytest.mark.e2e
 
 
 def _run(code: str) -> str:

@@ -43,6 +43,7 @@ def _run(level: str) -> list[str]:
     return done.stderr.splitlines()
 
 
+@pytest.mark.e2e
 def test_a_failed_put_is_one_line_with_time_level_and_source() -> None:
     lines = _run("info")
 
@@ -55,6 +56,7 @@ def test_a_failed_put_is_one_line_with_time_level_and_source() -> None:
     )
 
 
+@pytest.mark.e2e
 def test_debug_adds_the_traceback_without_local_variables() -> None:
     lines = _run("debug")
     text = "\n".join(lines)
@@ -64,6 +66,7 @@ def test_debug_adds_the_traceback_without_local_variables() -> None:
     assert "setpoint = 3" not in text and "│" not in text  # no loguru variable dump
 
 
+@pytest.mark.e2e
 def test_warning_hides_info() -> None:
     lines = _run("WARNING")
 

@@ -28,6 +28,7 @@ def test_dockerfile_defaults_and_epics_containers_layout() -> None:
 
 
 @pytest.mark.e2e
+@pytest.mark.slow
 def test_wheel_carries_the_data_and_runs_outside_the_checkout(tmp_path: Path) -> None:
     dist = tmp_path / "dist"
     subprocess.run(

@@ -172,6 +172,7 @@ def test_example_chains_in_ioc_load() -> None:
         assert target.describe()["symbols"] > 0, path
 
 
+@pytest.mark.e2e
 def test_the_cli_reports_a_bad_chain_in_one_line(tmp_path: Path) -> None:
     bad = tmp_path / "bad-chain.yaml"
     bad.write_text("masters:\n- slaves:\n  - {type: EL9999}\n", encoding="utf-8")

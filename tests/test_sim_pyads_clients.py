@@ -16,6 +16,8 @@ import yaml
 from fastcs_ethercat.sim.process import SimProcess
 from tests.conftest import REPO_ROOT
 
+pytestmark = pytest.mark.e2e
+
 NET_ID = "192.0.2.62.1.1"
 CLIENTS = 3
 

@@ -93,6 +93,7 @@ def _raw_sum_read(device: pyads.Connection, names: list[str]) -> list[int]:
     return list(SumReadResponse.decode(bytes(raw), lengths).results)
 
 
+@pytest.mark.e2e
 def test_only_the_failing_symbol_fails_in_read_list_by_name(
     sim: SimProcess, plc: pyads.Connection
 ) -> None:
@@ -119,6 +120,7 @@ def test_only_the_failing_symbol_fails_in_read_list_by_name(
     assert after == {**during, VALUE_1: 111}
 
 
+@pytest.mark.e2e
 def test_a_structure_fails_with_every_member_and_a_bit_on_its_own(
     sim: SimProcess, plc: pyads.Connection
 ) -> None:
@@ -131,6 +133,7 @@ def test_a_structure_fails_with_every_member_and_a_bit_on_its_own(
     assert len(faults) == 2
 
 
+@pytest.mark.e2e
 def test_single_reads_of_a_failing_symbol_fail_too(
     sim: SimProcess, plc: pyads.Connection
 ) -> None:
@@ -149,6 +152,7 @@ def test_single_reads_of_a_failing_symbol_fail_too(
     assert neighbour == 111
 
 
+@pytest.mark.e2e
 @pytest.mark.parametrize(
     ("params", "message"),
     [

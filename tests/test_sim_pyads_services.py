@@ -24,6 +24,8 @@ import yaml
 from fastcs_ethercat.sim.process import SimProcess
 from tests.conftest import REPO_ROOT
 
+pytestmark = pytest.mark.e2e
+
 NET_ID = "192.0.2.61.1.1"
 DEVICE_NET_ID = "192.0.2.61.2.1"
 EXTRA_EL1014 = 110

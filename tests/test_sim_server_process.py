@@ -15,6 +15,8 @@ from fastcs_ethercat.sim.process import SimProcess, SimProcessError
 from fastcs_ethercat.sim.runner import READY_PREFIX, parse_ready_line
 from tests.conftest import REPO_ROOT
 
+pytestmark = pytest.mark.e2e
+
 DEMO_CHAIN = REPO_ROOT / "ioc" / "demo-chain.yaml"
 CLI = [sys.executable, "-c", "from fastcs_ethercat.cli import app; app()", "sim"]
 

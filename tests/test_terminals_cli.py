@@ -158,6 +158,7 @@ def test_update_cache_from_a_local_file_then_use_it(
     cached.unlink()
 
 
+@pytest.mark.e2e
 def test_update_cache_subprocess_network_failure(tmp_path: Path) -> None:
     done = subprocess.run(
         [sys.executable, "-c", "from fastcs_ethercat.cli import app; app()",

@@ -173,6 +173,7 @@ def test_other_commands_report_bad_files_the_same_way(tmp_path: Path) -> None:
     assert path.read_text(encoding="utf-8") == text
 
 
+@pytest.mark.e2e
 def test_the_console_script_prints_one_line(tmp_path: Path) -> None:
     path, text = _broken(tmp_path, "    selected: true", "    selected: maybe")
     done = subprocess.run(

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 from fastcs_ethercat.esi.catalog import EsiCatalog, parse_all
@@ -12,7 +14,7 @@ from fastcs_ethercat.terminals.model import TerminalType
 from fastcs_ethercat.terminals.selection import select_group
 from fastcs_ethercat.terminals.symbols import expanded_symbols
 
-from .test_terminals_support import ESI, real_catalog
+from .test_terminals_support import real_catalog
 
 
 @pytest.fixture(scope="module")
@@ -173,9 +175,11 @@ def test_esi_file_names_drop_directories_and_zips() -> None:
 @pytest.mark.parametrize(
     "file_name", ["Beckhoff EL1xxx.xml", "Beckhoff EL15xx.xml", "Beckhoff EP4xxx.xml"]
 )
-def test_every_device_of_a_file_generates_a_stable_file(file_name: str) -> None:
+def test_every_device_of_a_file_generates_a_stable_file(
+    file_name: str, shared_esi: Path
+) -> None:
     """All revisions of all devices, with same-named PDOs (EL1262) and gaps."""
-    devices = parse_all([ESI / file_name]).devices
+    devices = parse_all([shared_esi / file_name]).devices
     assert devices
     for device in devices:
         terminal = terminal_from_esi(device)

@@ -1,4 +1,4 @@
-"""Loading: files, directories, globs, catio's single-file layout; the registry."""
+"""Loading: files, directories, globs; the registry (catio: test_terminals_catio)."""
 
 from __future__ import annotations
 
@@ -11,91 +11,8 @@ from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.terminals.files import read_terminal_file, write_terminal_file
 from fastcs_ethercat.terminals.loader import load_terminals, terminal_paths
 from fastcs_ethercat.terminals.registry import variant_of
-from fastcs_ethercat.terminals.symbols import expanded_symbols
 
 from .test_terminals_support import TERMINALS
-
-CATIO_FILE = """\
-# Terminal Configuration (catio-terminals single-file layout)
-composite_types:
-  Status__Underrange_6Bits:
-    description: 'Bit fields'
-    ads_type: 65
-    size: 2
-    members: []
-    bit_fields:
-      - name: Status__Underrange
-        bit: 0
-terminal_types:
-  EL3104:
-    description: 4-channel Analog Input +/-10V 16-bit
-    identity:
-      vendor_id: 2
-      product_code: 203436114
-      revision_number: 1048576
-    symbol_nodes:
-      - name_template: AI Standard Channel {channel}
-        index_group: 61489
-        type_name: Status__Underrange_6Bits
-        channels: 4
-        access: Read-only
-        fastcs_name: ai_standard_channel_{channel}
-        selected: true
-      - name_template: AI Standard Channel {channel}.Value
-        index_group: 61489
-        type_name: INT
-        channels: 4
-        access: Read-only
-        fastcs_name: ai_standard_channel_{channel}_value
-        selected: true
-        bit_offset: 16
-      - name_template: AI Compact Channel {channel}.Value
-        index_group: 61489
-        type_name: INT
-        channels: 4
-        access: Read-only
-        fastcs_name: ai_compact_channel_{channel}_value
-        selected: false
-    coe_objects:
-      - index: 32768
-        name: AI Settings
-        type_name: DT8000
-        bit_size: 160
-        access: rw
-        subindices:
-          - subindex: 1
-            name: Enable user scale
-            type_name: BOOL
-            bit_size: 1
-            access: rw
-            default_data: '00'
-            fastcs_name: enable_user_scale_8000
-        fastcs_name: ai_settings
-    group_type: AnaIn
-    pdo_groups:
-      - name: Standard
-        is_default: true
-        symbol_indices: [0, 1]
-      - name: Compact
-        is_default: false
-        symbol_indices: [2]
-    selected_pdo_group: Standard
-  EL2024:
-    description: 4-channel Digital Output 24V DC
-    identity:
-      vendor_id: 2
-      product_code: 132657234
-      revision_number: 1048576
-    symbol_nodes:
-      - name_template: Channel {channel}
-        index_group: 61473
-        type_name: BIT
-        channels: 4
-        access: Read/Write
-        fastcs_name: channel_{channel}
-    coe_objects: []
-    group_type: DigOut
-"""
 
 
 @pytest.fixture
@@ -123,45 +40,6 @@ def test_missing_sources_are_user_errors(tmp_path: Path) -> None:
         terminal_paths([str(tmp_path / "*.yaml")])
     with pytest.raises(UserError, match="no such terminal YAML file"):
         terminal_paths([tmp_path / "EL9999.yaml"])
-
-
-def test_catio_single_file_layout_is_read(tmp_path: Path) -> None:
-    path = tmp_path / "terminal_types.yaml"
-    path.write_text(CATIO_FILE, encoding="utf-8")
-    registry = load_terminals([path])
-    assert registry.type_names() == ["EL2024", "EL3104"]
-    el3104 = registry.get("EL3104").terminal
-    standard, compact = el3104.symbol_nodes
-    assert standard.name_template == "AI Standard Channel {channel}"
-    assert standard.channels == [1, 2, 3, 4]
-    assert [m.name for m in standard.members] == ["Value"]
-    assert standard.members[0].bit_offset == 16 and standard.bit_size == 32
-    assert standard.pdo_indices == [] and standard.members[0].coe == []
-    assert compact.name_template == "AI Compact Channel {channel}"
-    assert compact.type_name == "AI Compact Channel {channel}_TYPE"
-    assert not compact.selected
-    assert [g.symbol_indices for g in el3104.pdo_groups] == [[0], [1]]
-    assert el3104.coe_objects[0].selected
-    assert el3104.coe_objects[0].sub_items[0].fastcs_name == "enable_user_scale_8000"
-    el2024 = registry.get("EL2024").terminal
-    assert el2024.symbol_nodes[0].direction == "output"
-    assert el2024.symbol_nodes[0].access == "rw"
-    names = [s.name for s in expanded_symbols(el2024)]
-    assert names == ["Channel 1", "Channel 2", "Channel 3", "Channel 4"]
-
-
-def test_catio_layout_errors_name_the_place(tmp_path: Path) -> None:
-    path = tmp_path / "terminal_types.yaml"
-    path.write_text(CATIO_FILE.replace("        access: Read/Write\n",
-                                       "        acess: Read/Write\n"),
-                    encoding="utf-8")  # fmt: skip
-    with pytest.raises(UserError) as caught:
-        load_terminals([path])
-    line = CATIO_FILE.splitlines().index("        access: Read/Write") + 1
-    assert str(caught.value) == (
-        f"{path}:{line}:9: terminal_types.EL2024.symbol_nodes[0].acess: "
-        "unknown key 'acess'"
-    )
 
 
 def test_registry_exact_and_nearest_older_revision(terminals_copy: Path) -> None:

@@ -2,7 +2,8 @@
 
 `run_cli` runs the real `fastcs-ethercat` entry point in-process (argv,
 stdout, stderr and the exit code as a user would see them); `ESI` and
-`FIXTURE` are the real Beckhoff files and the EL3356-0010 fixture.
+`FIXTURE` are the real Beckhoff files (the devices the tests use, cut from
+them) and the EL3356-0010 fixture.
 """
 
 from __future__ import annotations
@@ -11,18 +12,23 @@ import contextlib
 import io
 import os
 import sys
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
+import pytest
+
 from fastcs_ethercat.cli import app
 from fastcs_ethercat.esi.catalog import EsiCatalog, build_catalog
+from tests.conftest import EL3356_FIXTURE as FIXTURE
+from tests.conftest import ESI_SUBSET as ESI
+from tests.conftest import TERMINALS_DIR
 
-REPO = Path(__file__).resolve().parents[1]
-ESI = REPO / ".." / "shared" / "esi"
-FIXTURE = REPO / "tests" / "data" / "esi" / "EL3356-0010-fixture.xml"
-TERMINALS = REPO / "terminals"
+TERMINALS = TERMINALS_DIR
 ESI_ARGS = ["--esi", str(ESI), "--esi", str(FIXTURE)]
+needs_esi = pytest.mark.skipif(
+    not ESI.is_dir(), reason="needs the shared Beckhoff ESI files (../shared/esi)"
+)
 
 DLS_TYPES = [
     "EK1100",
@@ -86,5 +92,19 @@ def cache_home(path: Path) -> Iterator[None]:
 
 
 def real_catalog() -> EsiCatalog:
-    """The catalog of the shared ESI files plus the EL3356-0010 fixture."""
+    """The catalog of the real ESI files plus the EL3356-0010 fixture."""
     return build_catalog([ESI, FIXTURE], use_cache=False)
+
+
+def regenerated_old_el3104(
+    folder: Path, cache: Path, edit: Callable[[Path], object]
+) -> tuple[Path, CliResult]:
+    """EL3104 generated at its older revision 0x00100000 into `folder`, edited
+    by `edit(path)`, then regenerated: the file and the regenerate result."""
+    with cache_home(cache):
+        made = run_cli("terminals", "generate", "EL3104", "--revision", "0x00100000",
+                       *ESI_ARGS, "--out", str(folder))  # fmt: skip
+        assert made.code == 0, made.err
+        path = folder / "EL3104.yaml"
+        edit(path)
+        return path, run_cli("terminals", "regenerate", str(folder), *ESI_ARGS)

@@ -1,14 +1,18 @@
-"""`fastcs-ethercat terminals`: ESI XML to terminal YAML.
+"""`fastcs-ethercat terminals`: ESI XML to terminal YAML, and the choices in it.
 
-Commands: list, show, generate, regenerate, select-group, check, schema,
-update-cache. Results go to stdout; progress bars go to stderr; user errors
+Commands: list, show, generate, regenerate, select-group, select, coe,
+import, edit, check, schema, update-cache. The choices (select-group,
+select, coe) are the functions of `terminals.selection` the editor calls
+too. Modules only some commands need (the comment keeper, catio import, the
+editor) are imported inside them: every `fastcs-ethercat ioc` start imports
+this module. Results go to stdout; progress bars go to stderr; user errors
 are raised as `UserError` (one line, exit code 2, printed by the root app).
 """
 
 from __future__ import annotations
 
 import fnmatch
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Annotated
@@ -25,7 +29,7 @@ from rich.progress import (
 
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.esi.catalog import EsiCatalog
-from fastcs_ethercat.esi.model import EsiDevice, parse_esi_int
+from fastcs_ethercat.esi.model import CatalogEntry, EsiDevice, parse_esi_int
 from fastcs_ethercat.terminals.esi_sources import (
     VENDOR_ZIP_URL,
     cached_zip,
@@ -33,7 +37,6 @@ from fastcs_ethercat.terminals.esi_sources import (
     open_catalog,
 )
 from fastcs_ethercat.terminals.files import (
-    CATIO_LAYOUT_KEY,
     read_terminal_file,
     terminal_file_name,
     terminal_file_text,
@@ -42,8 +45,15 @@ from fastcs_ethercat.terminals.generate import terminal_from_esi
 from fastcs_ethercat.terminals.loader import load_terminals, terminal_paths
 from fastcs_ethercat.terminals.merge import ChangeReport, merge_terminal
 from fastcs_ethercat.terminals.model import TerminalType
+from fastcs_ethercat.terminals.revisions import regenerate_revision
 from fastcs_ethercat.terminals.schema import schema_text, write_schema
-from fastcs_ethercat.terminals.selection import UnknownGroupError, select_group
+from fastcs_ethercat.terminals.selection import (
+    SelectionError,
+    group_name,
+    select_coe,
+    select_group,
+    select_symbols,
+)
 
 terminals_app = typer.Typer(
     help="Read Beckhoff ESI XML and generate or regenerate terminal YAML.",
@@ -112,6 +122,14 @@ def _catalog(esi: Sequence[Path] | None) -> EsiCatalog:
         catalog = open_catalog(esi)
     for warning in catalog.warnings:
         typer.echo(f"warning: {warning}", err=True)
+    if catalog.passive:
+        shown = ", ".join(catalog.passive[:5])
+        more = ", ..." if len(catalog.passive) > 5 else ""
+        typer.echo(
+            f"note: {len(catalog.passive)} passive devices without a product code "
+            f"left out ({shown}{more})",
+            err=True,
+        )
     return catalog
 
 
@@ -122,23 +140,55 @@ def list_types(
         str | None,
         typer.Option("--filter", help="Only types matching this glob (EL31*)."),
     ] = None,
+    every_revision: Annotated[
+        bool,
+        typer.Option("--revisions", help="One line per revision, not per type."),
+    ] = False,
 ) -> None:
-    """One line per terminal type: newest revision, product code, group type."""
+    """One line per terminal type: newest usable revision, product code, group
+    type; revisions that do not parse are named at the end of the line."""
     catalog = _catalog(esi)
     shown = 0
-    for entry in catalog.newest():
-        if filter_glob and not fnmatch.fnmatchcase(
-            entry.type_name.upper(), filter_glob.upper()
-        ):
+    for name in catalog.type_names():
+        if filter_glob and not fnmatch.fnmatchcase(name.upper(), filter_glob.upper()):
             continue
-        groups = "yes" if entry.has_pdo_groups else "no"
-        typer.echo(
-            f"{entry.type_name:<16} revision=0x{entry.revision:08x} "
-            f"product_code=0x{entry.product_code:08x} "
-            f"group_type={entry.group_type or '-'} pdo_groups={groups}"
-        )
+        if every_revision:
+            for entry in catalog.revisions(name):
+                typer.echo(_revision_line(catalog, entry))
+        else:
+            typer.echo(_type_line(catalog, name))
         shown += 1
     typer.echo(f"{shown} terminal types")
+
+
+def _entry_line(entry: CatalogEntry) -> str:
+    groups = "yes" if entry.has_pdo_groups else "no"
+    return (
+        f"{entry.type_name:<16} revision=0x{entry.revision:08x} "
+        f"product_code=0x{entry.product_code:08x} "
+        f"group_type={entry.group_type or '-'} pdo_groups={groups}"
+    )
+
+
+def _type_line(catalog: EsiCatalog, name: str) -> str:
+    chosen = catalog.newest_usable(name)
+    if chosen is None:
+        newest = catalog.revisions(name)[-1]
+        return f"{_entry_line(newest)} UNUSABLE: no revision parses ({newest.problem})"
+    broken = [e for e in catalog.revisions(name) if not e.parses]
+    if not broken:
+        return _entry_line(chosen)
+    listed = ",".join(f"0x{e.revision:08x}" for e in broken)
+    return f"{_entry_line(chosen)} not-parsed={listed}"
+
+
+def _revision_line(catalog: EsiCatalog, entry: CatalogEntry) -> str:
+    line = _entry_line(entry)
+    if not entry.parses:
+        return f"{line} NOT PARSED: {entry.problem}"
+    if entry not in catalog.usable(entry.type_name):
+        return f"{line} hidden"
+    return line
 
 
 @terminals_app.command("show")
@@ -151,7 +201,10 @@ def show(
     catalog = _catalog(esi)
     device = catalog.load(type_name, _revision(revision))
     terminal = terminal_from_esi(device)
-    revisions = [f"0x{e.revision:08x}" for e in catalog.revisions(device.type_name)]
+    revisions = [
+        f"0x{e.revision:08x}" + ("" if e.parses else " (does not parse)")
+        for e in catalog.revisions(device.type_name)
+    ]
     for line in _describe(device, terminal, revisions):
         typer.echo(line)
 
@@ -223,33 +276,61 @@ def generate(
         typer.Option("--skip-existing", help="Leave existing files as they are."),
     ] = False,
 ) -> None:
-    """Generate one YAML file per terminal type (default choices)."""
+    """Generate one YAML file per terminal type (default choices).
+
+    A type that fails writes nothing; the others are still written, and a
+    summary at the end names every failure (exit code 2)."""
     catalog = _catalog(esi)
     wanted = _revision(revision)
     out.mkdir(parents=True, exist_ok=True)
-    planned: list[tuple[str, Path]] = []
-    for requested in type_names:
-        name = catalog.find(requested, wanted).type_name
-        path = out / terminal_file_name(name)
-        if path.exists() and skip_existing and not force:
-            typer.echo(f"kept {path} ({name})")
-            continue
-        if path.exists() and not force:
-            raise UserError(
-                f"{path.name} exists: `terminals regenerate {out}` keeps its choices, "
-                "--force overwrites them",
-                path=path,
-            )
-        planned.append((name, path))
-    with _progress("generating", len(planned)) as progress:
-        for name, path in planned:
-            device = catalog.load(name, wanted)
-            terminal = terminal_from_esi(device)
-            path.write_text(terminal_file_text({name: terminal}), encoding="utf-8")
-            _advance(progress, name)
+    failed: list[str] = []
+    written = 0
+    with _progress("generating", len(type_names)) as progress:
+        for requested in type_names:
+            _advance(progress, requested)
+            try:
+                outcome = _generate_one(
+                    catalog, requested, wanted, out, force, skip_existing
+                )
+            except UserError as error:
+                failed.append(f"{requested}: {error}")
+                typer.echo(f"failed {requested}: {error}", err=True)
+                continue
+            written += outcome.startswith("wrote")
+            typer.echo(outcome)
     write_schema(out)
-    for name, path in planned:
-        typer.echo(f"wrote {path} ({name})")
+    if failed:
+        raise UserError(
+            f"generated {written} of {len(type_names)} types; failed: "
+            + "; ".join(failed)
+        )
+
+
+def _generate_one(
+    catalog: EsiCatalog,
+    requested: str,
+    revision: int | None,
+    out: Path,
+    force: bool,
+    skip_existing: bool,
+) -> str:
+    """Write one type's file; the line to print, or a UserError."""
+    entry = catalog.find(requested, revision)
+    name = entry.type_name
+    path = out / terminal_file_name(name)
+    if path.exists() and skip_existing and not force:
+        return f"kept {path} ({name})"
+    if path.exists() and not force:
+        raise UserError(
+            f"{path.name} exists: `terminals regenerate {out}` keeps its choices, "
+            "--force overwrites them",
+            path=path,
+        )
+    from fastcs_ethercat.terminals.saving import write_whole
+
+    terminal = terminal_from_esi(catalog.load(name, entry.revision))
+    write_whole(path, terminal_file_text({name: terminal}))
+    return f"wrote {path} ({name} revision 0x{entry.revision:08x})"
 
 
 @terminals_app.command("regenerate")
@@ -262,88 +343,266 @@ def regenerate(
         bool,
         typer.Option("--keep-revision", help="Stay on each file's revision."),
     ] = False,
+    revisions: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--revision",
+            metavar="TYPE=REV",
+            help="Move TYPE to revision REV (repeatable); without it a file "
+            "only moves to the newest revision of its own lineage.",
+        ),
+    ] = None,
 ) -> None:
-    """Regenerate every YAML in DIR from ESI, keeping the engineer's choices."""
+    """Regenerate every YAML in DIR from ESI, keeping the engineer's choices
+    and comments; prints what changed."""
+    from fastcs_ethercat.terminals.saving import save_terminals
+
     paths = terminal_paths([directory])
     files = {path: read_terminal_file(path) for path in paths}
+    requested = _type_revisions(revisions or [])
     catalog = _catalog(esi)
     total = sum(len(types) for types in files.values())
     reports: list[ChangeReport] = []
-    missing: list[str] = []
-    known = set(catalog.type_names())
+    notes: list[str] = []
+    unchanged: list[str] = []
     written = 0
     with _progress("regenerating", total) as progress:
         for path, types in files.items():
-            if not _our_layout(path):
-                raise UserError(
-                    "catio-terminals layout: generate our files with "
-                    "`terminals generate` instead",
-                    path=path,
-                )
             merged_types: dict[str, TerminalType] = {}
             for name, old in types.items():
                 _advance(progress, name)
-                if name not in known:
-                    missing.append(f"{name} ({path})")
-                    merged_types[name] = old
-                    continue
-                revision = old.identity.revision_number if keep_revision else None
-                fresh = terminal_from_esi(catalog.load(name, revision))
-                merged, report = merge_terminal(name, old, fresh)
+                merged, report, note = _regenerate_one(
+                    catalog, name, old, requested.pop(name, None), keep_revision
+                )
                 merged_types[name] = merged
-                reports.append(report)
-            text = terminal_file_text(merged_types)
-            if text != path.read_text(encoding="utf-8"):
-                path.write_text(text, encoding="utf-8")
-                written += 1
+                if report is not None:
+                    reports.append(report)
+                elif note:
+                    unchanged.append(f"{name} ({path}): {note}")
+                if report is not None and note:
+                    notes.append(f"{name} ({path.name}): {note}")
+            saved = save_terminals(path, merged_types)
+            written += saved.changed
+            notes += [f"{path}: {dropped}" for dropped in saved.dropped]
     write_schema(directory)
     for report in reports:
         typer.echo(report.summary())
         for line in report.lines():
             typer.echo(f"  {line}")
+    for note in notes:
+        typer.echo(f"note: {note}")
     typer.echo(f"regenerated {len(reports)} terminal types; {written} files changed")
-    if missing:
+    if requested:
         raise UserError(
-            f"not in the ESI files, left unchanged: {', '.join(missing)}",
-            path=directory,
+            f"--revision names types not in {directory}: {', '.join(requested)}"
         )
+    if unchanged:
+        raise UserError("left unchanged: " + "; ".join(unchanged), path=directory)
 
 
-def _our_layout(path: Path) -> bool:
-    """False for catio-terminals' single-file layout (`terminal_types:`)."""
-    return not any(
-        line.startswith(f"{CATIO_LAYOUT_KEY}:")
-        for line in path.read_text(encoding="utf-8").splitlines()
+def _type_revisions(items: list[str]) -> dict[str, int]:
+    """`EL3104=0x00110000` options as {type: revision}."""
+    result: dict[str, int] = {}
+    for item in items:
+        name, sep, number = item.partition("=")
+        revision = _revision(number) if sep and name else None
+        if revision is None:
+            raise UserError(f"--revision {item!r}: want TYPE=REV (EL3104=0x00110000)")
+        result[name] = revision
+    return result
+
+
+def _regenerate_one(
+    catalog: EsiCatalog,
+    name: str,
+    old: TerminalType,
+    requested: int | None,
+    keep_revision: bool,
+) -> tuple[TerminalType, ChangeReport | None, str | None]:
+    """The merged terminal, its report and a note; the old one when it stays."""
+    if name not in catalog.type_names():
+        return old, None, "not in the ESI files, left unchanged"
+    choice = regenerate_revision(
+        catalog, name, old, requested=requested, keep_revision=keep_revision
     )
+    if choice.entry is None:
+        return old, None, f"left unchanged: {choice.note}"
+    fresh = terminal_from_esi(catalog.load(name, choice.entry.revision))
+    merged, report = merge_terminal(name, old, fresh)
+    return merged, report, choice.note
+
+
+FileArgument = Annotated[
+    Path, typer.Argument(metavar="FILE", help="Terminal YAML file.")
+]
+TypeOption = Annotated[
+    str | None,
+    typer.Option("--type", help="Terminal type, if the file holds several."),
+]
+OffOption = Annotated[bool, typer.Option("--off", help="Deselect instead of select.")]
+
+
+def _edit_file(
+    file: Path, type_name: str | None, edit: Callable[[TerminalType], TerminalType]
+) -> tuple[str, TerminalType]:
+    """Apply `edit` to one type of a file and save it (comments kept)."""
+    from fastcs_ethercat.terminals.saving import save_terminals
+
+    types = read_terminal_file(file)
+    name = _one_type(types, type_name, file)
+    try:
+        changed = edit(types[name])
+    except SelectionError as error:
+        raise UserError(str(error), path=file, where=name) from None
+    types[name] = changed
+    saved = save_terminals(file, types)
+    for dropped in saved.dropped:
+        typer.echo(f"note: {file}: {dropped}", err=True)
+    return name, changed
 
 
 @terminals_app.command("select-group")
 def select_group_command(
-    file: Annotated[Path, typer.Argument(metavar="FILE", help="Terminal YAML file.")],
+    file: FileArgument,
     group: Annotated[str, typer.Argument(metavar="GROUP", help="PDO group name.")],
-    type_name: Annotated[
-        str | None,
-        typer.Option("--type", help="Terminal type, if the file holds several."),
-    ] = None,
+    type_name: TypeOption = None,
 ) -> None:
     """Select a PDO group and switch the symbols' `selected` flags with it."""
-    types = read_terminal_file(file)
-    if not _our_layout(file):
-        raise UserError("catio-terminals layout is read-only here", path=file)
-    name = _one_type(types, type_name, file)
-    terminal = types[name]
-    chosen = _group_name(terminal, group)
-    try:
-        changed = select_group(terminal, chosen)
-    except UnknownGroupError as error:
-        raise UserError(str(error), path=file, where=name) from None
-    types[name] = changed
-    file.write_text(terminal_file_text(types), encoding="utf-8")
+    chosen: list[str] = []
+
+    def edit(terminal: TerminalType) -> TerminalType:
+        chosen.append(group_name(terminal, group))
+        return select_group(terminal, chosen[0])
+
+    name, changed = _edit_file(file, type_name, edit)
     on = sum(node.selected for node in changed.symbol_nodes)
     typer.echo(
-        f"{name}: selected PDO group {chosen!r} "
+        f"{name}: selected PDO group {chosen[0]!r} "
         f"({on} of {len(changed.symbol_nodes)} symbol nodes selected)"
     )
+
+
+@terminals_app.command("select")
+def select_command(
+    file: FileArgument,
+    symbols: Annotated[
+        list[str],
+        typer.Argument(
+            metavar="SYMBOL...",
+            help="Symbols by name_template ('AI Standard Channel {channel}') "
+            "or fastcs_name.",
+        ),
+    ],
+    off: OffOption = False,
+    type_name: TypeOption = None,
+) -> None:
+    """Select symbols (PVs are made for them), or deselect them with --off."""
+    name, changed = _edit_file(
+        file, type_name, lambda terminal: select_symbols(terminal, symbols, not off)
+    )
+    on = [node.name_template for node in changed.symbol_nodes if node.selected]
+    typer.echo(f"{name}: {len(on)} of {len(changed.symbol_nodes)} symbols selected")
+
+
+@terminals_app.command("coe")
+def coe_command(
+    file: FileArgument,
+    targets: Annotated[
+        list[str],
+        typer.Argument(
+            metavar="INDEX[:SUB]...",
+            help="CoE objects (0x8000) or sub-indices (0x8000:11), hex.",
+        ),
+    ],
+    off: OffOption = False,
+    type_name: TypeOption = None,
+) -> None:
+    """Select CoE objects or sub-indices (PVs are made for them), or --off."""
+    name, changed = _edit_file(
+        file, type_name, lambda terminal: select_coe(terminal, targets, not off)
+    )
+    on = [obj for obj in changed.coe_objects if obj.selected]
+    typer.echo(f"{name}: {len(on)} of {len(changed.coe_objects)} CoE objects selected")
+
+
+@terminals_app.command("edit")
+def edit_command(
+    directory: Annotated[
+        Path,
+        typer.Argument(metavar="[DIR]", help="Directory of terminal YAML files."),
+    ] = Path("terminals"),
+    esi: EsiOption = None,
+    target: Annotated[
+        str | None,
+        typer.Option(
+            "--target",
+            metavar="HOST[:PORT]",
+            help="TwinCAT (or the simulator): show each live terminal's PDO group.",
+        ),
+    ] = None,
+    ams_net_id: Annotated[
+        str | None,
+        typer.Option(
+            "--ams-net-id", help="The target's AMS NetId (default: ask it over UDP)."
+        ),
+    ] = None,
+    host: Annotated[
+        str, typer.Option("--host", help="Address to serve on.")
+    ] = "127.0.0.1",
+    port: Annotated[
+        int, typer.Option("--port", help="Port to serve on (0: any free one).")
+    ] = 8080,
+) -> None:
+    """A web editor for the terminal files of DIR: PDO group, symbols, CoE
+    objects, oversampling, names, a diff before saving."""
+    from fastcs_ethercat.editor.server import run_editor
+
+    run_editor(directory, esi, target, host, port, ams_net_id)
+
+
+@terminals_app.command("import")
+def import_command(
+    file: Annotated[
+        Path, typer.Argument(metavar="FILE", help="catio-terminals terminal_types.yaml")
+    ],
+    out: Annotated[Path, typer.Option("--out", help="Directory for the YAML files.")],
+    esi: EsiOption = None,
+    force: Annotated[
+        bool, typer.Option("--force", help="Overwrite existing files.")
+    ] = False,
+) -> None:
+    """Convert a catio-terminals file: every type is generated from the ESI of
+    its own identity and takes over catio's selections and fastcs_names;
+    every node or choice that cannot be placed is named."""
+    from fastcs_ethercat.terminals.catio_import import import_catio, read_catio_file
+    from fastcs_ethercat.terminals.saving import write_whole
+
+    located, types = read_catio_file(file)
+    catalog = _catalog(esi)
+    out.mkdir(parents=True, exist_ok=True)
+    failed: list[str] = []
+    unplaced = 0
+    for result in import_catio(located, types, catalog):
+        for problem in result.problems:
+            typer.echo(f"warning: {file}: {result.type_name}: {problem}", err=True)
+        if result.terminal is None:
+            failed.append(result.type_name)
+            continue
+        unplaced += len(result.problems)
+        path = out / terminal_file_name(result.type_name)
+        if path.exists() and not force:
+            typer.echo(f"warning: {path} exists (--force overwrites it)", err=True)
+            failed.append(result.type_name)
+            continue
+        write_whole(path, terminal_file_text({result.type_name: result.terminal}))
+        typer.echo(f"wrote {path} ({result.type_name})")
+    write_schema(out)
+    typer.echo(
+        f"imported {len(types) - len(failed)} of {len(types)} types; "
+        f"{unplaced} nodes or choices could not be placed"
+    )
+    if failed:
+        raise UserError(f"not imported: {', '.join(failed)}", path=file)
 
 
 def _one_type(types: dict[str, TerminalType], wanted: str | None, file: Path) -> str:
@@ -359,22 +618,13 @@ def _one_type(types: dict[str, TerminalType], wanted: str | None, file: Path) ->
     return next(iter(types))
 
 
-def _group_name(terminal: TerminalType, wanted: str) -> str:
-    """`wanted`, or the one group whose name matches it ignoring case."""
-    names = [g.name for g in terminal.pdo_groups]
-    if wanted in names:
-        return wanted
-    folded = [n for n in names if n.casefold() == wanted.casefold()]
-    return folded[0] if len(folded) == 1 else wanted
-
-
 @terminals_app.command("check")
 def check(
     paths: Annotated[
         list[str], typer.Argument(metavar="PATH...", help="YAML files, dirs or globs.")
     ],
 ) -> None:
-    """Validate terminal YAML files (either layout) and report what they hold."""
+    """Validate terminal YAML files and report how many types they hold."""
     registry = load_terminals(paths)
     typer.echo(f"{len(registry)} terminal types OK")
 

@@ -25,7 +25,7 @@ from typing import Any
 
 from fastcs_ethercat.cache_dir import cache_dir
 
-CACHE_FORMAT = 1
+CACHE_FORMAT = 2
 
 
 def cache_root() -> Path:

@@ -5,11 +5,20 @@ whether it has PDO groups, file and line) and caches the rows by file content
 (see `cache`); `load_device` then fully parses one device, `parse_all` every
 device.
 
-Revisions: `find(type)` gives the newest revision, `find(type, rev)` an exact
-one, `revisions(type)` all of them. When the same type and revision appear
-in several files (EL3602 #x00100000 is in both EL3xxx.xml copies), the copy
-from the file holding the newest revision of that type wins (the more recent
-download); ties go to the first file in sorted order.
+Every row is also parsed in full once (cached with the row), so the catalog
+knows which devices do not parse: old generic catalogues (`Beckhoff EtherCAT
+Terminals.xml`) describe placeholder revisions such as #x270b0000 whose PDOs
+are only references (`<TxPdo Ref=... Chn=...>`, no `<Index>`).
+
+Revisions: `find(type)` gives the newest *usable* revision, `find(type, rev)`
+an exact one, `revisions(type)` all of them (`problem` says which do not
+parse). Usable means: it parses, and no parsing revision of the same product
+hides it with a `HideType` (Beckhoff's files hide superseded revisions and
+the catalogue placeholders #x27070000, #x27080000, #x270b0000 that way, as
+TwinCAT's own catalogue does). When the same type and revision appear in
+several files (EL3602 #x00100000 is in both EL3xxx.xml copies), a copy that
+parses wins, then the copy from the file holding the newest revision of that
+type (the more recent download); ties go to the first file in sorted order.
 """
 
 from __future__ import annotations
@@ -23,7 +32,7 @@ from typing import Any
 from fastcs_ethercat.errors import UserError
 
 from .cache import CatalogCache, sha256_of
-from .device import describe, name_of
+from .device import describe, name_of, parse_device
 from .files import (
     EsiFileResult,
     device_elements,
@@ -35,26 +44,36 @@ from .files import (
     vendor_id_of,
 )
 from .groups import has_alternatives
-from .model import CatalogEntry, EsiDevice
+from .memo import ParseMemo
+from .model import CatalogEntry, EsiDevice, parse_esi_int
 from .sources import EsiDocument, SourceArg, find_documents
 from .xmltext import Element, EsiFormatError, fail, text_of
 
 _Row = list[Any]
 """Cached form of a CatalogEntry (no source): see `_row` / `_entry`."""
+_Scan = tuple[list[_Row], list[str], list[str]]
+"""Rows, warnings and passive device names of one document."""
 
 
-def _row(device: Element, position: int, vendor_id: int) -> _Row | None:
+def _row(
+    device: Element, position: int, vendor_id: int, name: str, memo: ParseMemo
+) -> _Row | None:
     identity = identity_or_none(device)
     if identity is None:
         return None
     type_name, product_code, revision = identity
     names: dict[int, str] = {}
     group_type = ""
+    hides: list[int] = []
     for child in device:
         if child.tag == "Name":
             name_of(child, names)
         elif child.tag == "GroupType":
             group_type = text_of(child)
+        elif child.tag == "HideType":
+            hidden = _hidden_revision(child, product_code)
+            if hidden is not None and hidden != revision:
+                hides.append(hidden)
     return [
         type_name,
         revision,
@@ -65,7 +84,33 @@ def _row(device: Element, position: int, vendor_id: int) -> _Row | None:
         describe(names, type_name),
         device.sourceline or 0,
         position,
+        _problem(device, vendor_id, name, memo),
+        hides,
     ]
+
+
+def _hidden_revision(element: Element, product_code: int) -> int | None:
+    """The revision a `HideType` hides, if it is one of this product's."""
+    try:
+        code = element.get("ProductCode")
+        if code is not None and parse_esi_int(code) != product_code:
+            return None
+        revision = element.get("RevisionNo")
+        return parse_esi_int(revision) if revision is not None else None
+    except ValueError:
+        return None
+
+
+def _problem(device: Element, vendor_id: int, name: str, memo: ParseMemo) -> str:
+    """Why the device does not parse in full ("" when it does)."""
+    try:
+        parse_device(device, vendor_id=vendor_id, source=name, memo=memo)
+    except EsiFormatError as error:
+        line = error.line or device.sourceline or 0
+        return f"line {line}: {error.message}"
+    except RecursionError:
+        return f"line {device.sourceline or 0}: nesting too deep"
+    return ""
 
 
 def _entry(row: _Row, source: str) -> CatalogEntry:
@@ -79,6 +124,8 @@ def _entry(row: _Row, source: str) -> CatalogEntry:
         text,
         line,
         pos,
+        problem,
+        hides,
     ) = row
     return CatalogEntry(
         type_name=type_name,
@@ -91,28 +138,49 @@ def _entry(row: _Row, source: str) -> CatalogEntry:
         source=source,
         line=line,
         device_position=pos,
+        problem=problem or None,
+        hides=tuple(hides),
     )
 
 
-def scan_document(data: bytes, name: str) -> tuple[list[_Row], list[str]]:
-    """Catalog rows and one-line warnings of one document (never raises)."""
+def scan_document(data: bytes, name: str) -> _Scan:
+    """Catalog rows, one-line warnings and passive devices of one document
+    (never raises)."""
     try:
         root = read_root(data, name)
         vendor_id = vendor_id_of(root, name)
     except UserError as error:
-        return [], [str(error)]
+        return [], [str(error)], []
     rows: list[_Row] = []
     warnings: list[str] = []
+    passive: list[str] = []
+    memo = ParseMemo()
     for position, device in enumerate(device_elements(root)):
         try:
-            row = _row(device, position, vendor_id)
+            row = _row(device, position, vendor_id, name, memo)
             if row is None:
+                passive_name = _passive_name(device)
+                if passive_name:
+                    passive.append(passive_name)
+                    continue
                 raise fail(device, "<Type> lacks a name or ProductCode")
         except EsiFormatError as error:
             warnings.append(str(device_error(error, device, position, name)))
             continue
         rows.append(row)
-    return rows, warnings
+    return rows, warnings, passive
+
+
+def _passive_name(device: Element) -> str | None:
+    """The type name of a passive terminal (end caps, potential feeds, EL9xxx):
+    no product code and no process data, so it never shows up on the bus.
+    A device with process data but no product code is a broken one."""
+    type_element = device.find("Type")
+    if type_element is None or type_element.get("ProductCode") is not None:
+        return None
+    if any(child.tag in ("TxPdo", "RxPdo", "Sm") for child in device):
+        return None
+    return text_of(type_element) or None
 
 
 class EsiCatalog:
@@ -123,9 +191,12 @@ class EsiCatalog:
         entries: Iterable[CatalogEntry],
         warnings: Iterable[str] = (),
         documents: Iterable[EsiDocument] = (),
+        passive: Iterable[str] = (),
     ) -> None:
         self.entries: tuple[CatalogEntry, ...] = tuple(entries)
         self.warnings: tuple[str, ...] = tuple(warnings)
+        self.passive: tuple[str, ...] = tuple(sorted(set(passive)))
+        """Devices without a product code (passive terminals), by type."""
         self._documents = {document.name: document for document in documents}
         self._roots: OrderedDict[str, Element] = OrderedDict()
         by_type: dict[str, list[CatalogEntry]] = {}
@@ -154,14 +225,40 @@ class EsiCatalog:
         return folded
 
     def revisions(self, type_name: str) -> tuple[CatalogEntry, ...]:
-        """One entry per revision of a type, oldest first."""
+        """One entry per revision of a type, oldest first (broken ones too)."""
         return self._by_type[self._type(type_name)]
 
+    def usable(self, type_name: str) -> tuple[CatalogEntry, ...]:
+        """Revisions that parse and that no parsing revision hides, oldest first."""
+        return usable_revisions(self.revisions(type_name))
+
+    def newest_usable(self, type_name: str) -> CatalogEntry | None:
+        """The revision `find(type)` chooses; None when no revision parses.
+
+        Without a usable one, the newest that parses (every parsing revision
+        hidden would be a strange file, but still better than nothing)."""
+        found = self.revisions(type_name)
+        usable = usable_revisions(found)
+        if usable:
+            return usable[-1]
+        parsing = [entry for entry in found if entry.parses]
+        return parsing[-1] if parsing else None
+
     def find(self, type_name: str, revision: int | None = None) -> CatalogEntry:
-        """Newest revision of a type, or exactly `revision`."""
+        """Newest usable revision of a type, or exactly `revision`."""
         found = self.revisions(type_name)
         if revision is None:
-            return found[-1]
+            chosen = self.newest_usable(type_name)
+            if chosen is None:
+                reasons = "; ".join(
+                    f"#x{entry.revision:08x} {entry.problem}" for entry in found
+                )
+                raise UserError(
+                    f"no revision of {found[0].type_name} parses ({reasons})",
+                    path=found[-1].source,
+                    where=str(found[-1].line),
+                )
+            return chosen
         for entry in found:
             if entry.revision == revision:
                 return entry
@@ -172,8 +269,12 @@ class EsiCatalog:
         )
 
     def newest(self) -> tuple[CatalogEntry, ...]:
-        """The newest revision of every type, sorted by type name."""
-        return tuple(self._by_type[name][-1] for name in self.type_names())
+        """Per type, sorted by name: what `find(type)` chooses, or the newest
+        revision when none parses (its `problem` says why)."""
+        return tuple(
+            self.newest_usable(name) or self._by_type[name][-1]
+            for name in self.type_names()
+        )
 
     def _root(self, source: str) -> Element:
         """Parsed document, keeping the last two (a device is often followed
@@ -224,6 +325,13 @@ def _matches(device: Element, entry: CatalogEntry) -> bool:
     )
 
 
+def usable_revisions(entries: Iterable[CatalogEntry]) -> tuple[CatalogEntry, ...]:
+    """Entries that parse and that no parsing entry hides (see module doc)."""
+    parsing = [entry for entry in entries if entry.parses]
+    hidden = {revision for entry in parsing for revision in entry.hides}
+    return tuple(entry for entry in parsing if entry.revision not in hidden)
+
+
 def _preferred(entries: list[CatalogEntry]) -> tuple[CatalogEntry, ...]:
     """One entry per revision (see the module docstring), oldest first."""
     newest_in_file: dict[str, int] = {}
@@ -234,17 +342,15 @@ def _preferred(entries: list[CatalogEntry]) -> tuple[CatalogEntry, ...]:
     chosen: dict[int, CatalogEntry] = {}
     for entry in entries:
         current = chosen.get(entry.revision)
-        if current is None or (
-            newest_in_file[entry.source] > newest_in_file[current.source]
+        if current is None or (entry.parses, newest_in_file[entry.source]) > (
+            current.parses,
+            newest_in_file[current.source],
         ):
             chosen[entry.revision] = entry
     return tuple(chosen[revision] for revision in sorted(chosen))
 
 
-_Scan = tuple[list[_Row], list[str]]
-
-
-_ROW_TYPES = (str, int, int, int, str, bool, str, int, int)
+_ROW_TYPES = (str, int, int, int, str, bool, str, int, int, str, list)
 
 
 def _valid_row(row: object) -> bool:
@@ -253,6 +359,7 @@ def _valid_row(row: object) -> bool:
         isinstance(row, list)
         and len(row) == len(_ROW_TYPES)
         and all(isinstance(v, t) for v, t in zip(row, _ROW_TYPES, strict=True))
+        and all(isinstance(v, int) for v in row[-1])
     )
 
 
@@ -265,17 +372,18 @@ def _from_cache(
     results: dict[str, _Scan] = {}
     for document in documents:
         value = cached.get(document.member or "")
-        if not (isinstance(value, list) and len(value) == 2):
+        if not (isinstance(value, list) and len(value) == 3):
             return None
-        rows, warnings = value
+        rows, warnings, passive = value
         if not (
             isinstance(rows, list)
             and isinstance(warnings, list)
+            and isinstance(passive, list)
             and all(_valid_row(row) for row in rows)
-            and all(isinstance(warning, str) for warning in warnings)
+            and all(isinstance(text, str) for text in (*warnings, *passive))
         ):
             return None
-        results[document.name] = (rows, warnings)
+        results[document.name] = (rows, warnings, passive)
     return results
 
 
@@ -293,7 +401,9 @@ def _scan_container(
         data = container.read_bytes()
     except OSError as error:
         message = f"cannot read ESI file: {error.strerror or error}"
-        return {d.name: ([], [str(UserError(message, path=d.name))]) for d in documents}
+        return {
+            d.name: ([], [str(UserError(message, path=d.name))], []) for d in documents
+        }
     sha = sha256_of(data)
     if cache is not None:
         cached = _from_cache(cache, sha, documents)
@@ -305,7 +415,7 @@ def _scan_container(
         try:
             content = document.read_from(data)
         except UserError as error:
-            results[document.name] = ([], [str(error)])
+            results[document.name] = ([], [str(error)], [])
         else:
             results[document.name] = scan_document(content, document.name)
     if cache is not None:
@@ -331,15 +441,17 @@ def build_catalog(
         by_container.setdefault(document.container, []).append(document)
     entries: list[CatalogEntry] = []
     warnings: list[str] = []
+    passive: list[str] = []
     for container, members in by_container.items():
         scanned = _scan_container(container, members, cache)
         for document in members:
-            rows, found = scanned[document.name]
+            rows, found, passive_here = scanned[document.name]
             entries.extend(_entry(row, document.name) for row in rows)
             warnings.extend(found)
+            passive.extend(passive_here)
     if cache is not None:
         cache.flush()
-    return EsiCatalog(entries, warnings, documents)
+    return EsiCatalog(entries, warnings, documents, passive)
 
 
 def load_device(
@@ -388,4 +500,5 @@ __all__ = [
     "load_device",
     "parse_all",
     "scan_document",
+    "usable_revisions",
 ]

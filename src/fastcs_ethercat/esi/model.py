@@ -324,3 +324,12 @@ class CatalogEntry:
     """Line of the `<Device>` start tag in the source file."""
     device_position: int = 0
     """0-based position of the device among the file's `<Device>`s."""
+    problem: str | None = None
+    """Why the device does not parse (one line), None when it does."""
+    hides: tuple[int, ...] = ()
+    """Revisions of its own product this device hides (`HideType`): older
+    ones, and catalogue placeholders like #x270b0000 ("-9995")."""
+
+    @property
+    def parses(self) -> bool:
+        return self.problem is None

@@ -4,7 +4,9 @@ Quirks of the real files handled here: gap entries with `<Index>#x0</Index>`
 and no SubIndex/Name/DataType, hex in any case and width (`#x1A00`,
 `#x1a00`, `#x98`), PDOs on Sm 0 (devices without mailbox), oversampling
 attributes (`OSFac`, `OSMin`, `OSMax`, `OSIndexInc`), names with stray
-surrounding spaces (stripped).
+surrounding spaces (stripped). Old generic catalogues give PDOs only by
+reference (`<TxPdo Ref="#x1a00" Chn="1"/>`): such a device is not usable
+and says so.
 """
 
 from __future__ import annotations
@@ -73,6 +75,13 @@ def parse_pdo(element: Element, direction: PdoDirection) -> EsiPdo:
         elif tag == "Exclude":
             excludes.append(int_of(child, "PDO Exclude"))
     if index is None:
+        reference = element.get("Ref")
+        if reference is not None:
+            raise fail(
+                element,
+                f"<{element.tag} Ref={reference.strip()!r}> only refers to a PDO "
+                "(a catalogue placeholder, not a device description)",
+            )
         raise fail(element, f"<{element.tag}> has no <Index>")
     if name is None:
         raise fail(element, f"PDO #x{index:04x} has no <Name>")

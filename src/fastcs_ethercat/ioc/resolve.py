@@ -459,6 +459,7 @@ def coe_object_points(obj: CoeObject) -> list[CoePoint]:
             enum_texts=tuple((e.value, e.text) for e in sub.enum),
         )
         for sub in obj.sub_items
+        if sub.selected
     ]
 
 

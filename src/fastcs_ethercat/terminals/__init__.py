@@ -5,7 +5,7 @@ The YAML schema is documented in `fastcs_ethercat.terminals.model`.
 Public API:
 
 - `load_terminals(paths)` -> `TerminalRegistry` (files, directories, globs;
-  our layout and catio-terminals' `terminal_types:` layout);
+  catio-terminals' `terminal_types:` files are converted by `catio_import`);
   `TerminalRegistry.lookup(product_code, revision)` -> `RegistryMatch`
   (exact, else nearest older revision of the same variant, `exact=False`).
 - `read_terminal_file(path)` / `write_terminal_file(path, {name: terminal})`

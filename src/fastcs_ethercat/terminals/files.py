@@ -1,10 +1,10 @@
 """One terminal YAML file <-> validated `TerminalType`s, with precise errors.
 
-Two layouts are read: ours (the file's top-level keys are terminal types)
-and catio-terminals' single-file layout (`terminal_types:` holding many
-types, converted by `catio_compat`). Only ours is written. Every problem a
-user can make in a file becomes one `UserError` naming the file, the line
-and the key path.
+Our layout: the file's top-level keys are terminal types. catio-terminals'
+single-file layout (`terminal_types:`) records no bit offsets, so it is
+refused with one line pointing at `terminals import` (`catio_import`), which
+rebuilds it from the ESI. Every problem a user can make in a file becomes one
+`UserError` naming the file, the line and the key path.
 """
 
 from __future__ import annotations
@@ -32,16 +32,20 @@ CATIO_LAYOUT_KEY = "terminal_types"
 _TYPE_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.+-]*$")
 
 
-def read_terminal_file(path: Path | str) -> dict[str, TerminalType]:
-    """Every terminal type in one file (either layout), validated."""
-    path = Path(path)
+def read_text(path: Path) -> str:
+    """A YAML file's text, or a one-line `UserError`."""
     try:
-        text = path.read_text(encoding="utf-8")
+        return path.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise UserError("no such file", path=path) from None
     except (OSError, UnicodeDecodeError) as error:
         raise UserError(f"cannot read: {error}", path=path) from None
-    return parse_terminal_text(text, path)
+
+
+def read_terminal_file(path: Path | str) -> dict[str, TerminalType]:
+    """Every terminal type in one file, validated."""
+    path = Path(path)
+    return parse_terminal_text(read_text(path), path)
 
 
 def parse_terminal_text(text: str, path: Path | str) -> dict[str, TerminalType]:
@@ -54,9 +58,9 @@ def parse_terminal_text(text: str, path: Path | str) -> dict[str, TerminalType]:
             where=located.where(()),
         )
     if CATIO_LAYOUT_KEY in located.data:
-        from fastcs_ethercat.terminals.catio_compat import read_catio_layout
+        from fastcs_ethercat.terminals.catio_import import not_importable
 
-        return read_catio_layout(located)
+        raise not_importable(located)
     return validate_terminals(located, located.data, ())
 
 

@@ -2,10 +2,11 @@
 
 The freshly generated terminal brings the facts (PDOs, types, groups, CoE
 dictionary, identity); the old file brings the choices: `selected` flags of
-symbols and CoE objects, `selected_pdo_group`, the oversampling factor and
-`fastcs_name`s (renaming an attribute renames PVs). A choice that no longer
-fits (its group is gone, its symbol moved out of the selected group) falls
-back to the generated default and is named in the report.
+symbols, CoE objects and their sub-indices, `selected_pdo_group`, the
+oversampling factor and `fastcs_name`s (renaming an attribute renames PVs).
+A choice that no longer fits (its group is gone, its symbol moved out of the
+selected group) falls back to the generated default and is named in the
+report.
 """
 
 from __future__ import annotations
@@ -347,8 +348,10 @@ def _merge_coe(old: TerminalType, merged: TerminalType, report: ChangeReport) ->
             )
         taken.add(obj.fastcs_name)
         old_subs = {s.subindex: s.fastcs_name for s in before.sub_items}
+        old_flags = {s.subindex: s.selected for s in before.sub_items}
         sub_names = {s.fastcs_name for s in obj.sub_items}
         for sub in obj.sub_items:
+            sub.selected = old_flags.get(sub.subindex, True)
             wanted = old_subs.get(sub.subindex)
             if wanted and wanted != sub.fastcs_name and wanted not in sub_names:
                 sub_names.discard(sub.fastcs_name)

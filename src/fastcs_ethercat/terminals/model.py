@@ -98,8 +98,8 @@ Meaning, for the simulator and the IOC:
   Standard Channel 1`). `channels` is empty for a PDO without a channel; then
   `name_template` has no `{channel}` and `pdo_indices` has one entry.
   Position k of `channels`, `pdo_indices` and every member's `coe` belong
-  together. Empty `pdo_indices` / `coe` mean "not known" (descriptions read
-  from catio-terminals files, which do not record them).
+  together. Empty `pdo_indices` / `coe` mean "not known" (a hand-written
+  description); generated and imported files always have them.
 - `type_name` is the symbol's TwinCAT type: `<PDO name>_TYPE` (a BIGTYPE
   structure) for a PDO with several entries or a nested entry name; the
   entry's own scalar type (`BIT`, `INT`, `UDINT`, ...) for a single-entry PDO.
@@ -113,7 +113,8 @@ Meaning, for the simulator and the IOC:
   real size is `bit_size * selected_factor` (see `expanded_symbols`). Its
   name and type (`Ch1 Sample 0`, `Ch1 Sample 0_TYPE_ARR`, an array of
   samples) follow catio's table of real TwinCAT symbols.
-- `selected` says whether the IOC makes PVs for a symbol or CoE object. A
+- `selected` says whether the IOC makes PVs for a symbol or CoE object (a
+  CoE sub-item may say `selected: false` to leave out one sub-index). A
   symbol that belongs to PDO groups is selectable only in the selected group;
   symbols of the other groups are saved with `selected: false`. Symbols in
   no group are optional PDOs (ELM37xx control PDOs, EL3356 timestamp...):
@@ -272,6 +273,11 @@ class CoeSubItem(_Model):
     subindex: Hex8 = Field(description="Sub-index.")
     name: str
     fastcs_name: FastcsName = Field(description="Attribute name within the object.")
+    selected: bool = Field(
+        default=True,
+        description="Off: no PV for this sub-index even when its object is "
+        "selected (written only when off).",
+    )
     type_name: str
     bit_size: int = Field(ge=0)
     bit_offset: int = Field(default=0, ge=0)

@@ -1,0 +1,81 @@
+"""Processes the tests start: found by a token in their environment, stopped
+by PID.
+
+Every process a test starts inherits the session's token (the conftest puts
+it in `os.environ`), and the processes of one IOC also carry a token of
+their own; children they spawn themselves (a caRepeater, the simulator the
+demo starts) inherit it as well, so they are found without knowing their
+parents.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import secrets
+import signal
+import time
+from pathlib import Path
+
+TOKEN_VARIABLE = "FASTCS_ETHERCAT_TEST_TOKEN"
+"""Carried by the processes of one IOC under test."""
+SESSION_VARIABLE = "FASTCS_ETHERCAT_TEST_SESSION"
+"""Carried by every process one pytest session starts."""
+
+
+def new_token() -> str:
+    return secrets.token_hex(8)
+
+
+def processes_with(variable: str, token: str) -> list[int]:
+    """PIDs, other than ours, whose environment has `variable=token`."""
+    found = []
+    marker = f"{variable}={token}".encode()
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit() or int(entry.name) == os.getpid():
+            continue
+        try:
+            if marker in (entry / "environ").read_bytes().split(b"\0"):
+                found.append(int(entry.name))
+        except OSError:
+            continue
+    return found
+
+
+def processes_with_token(token: str) -> list[int]:
+    """PIDs of the processes of one IOC under test (its caRepeater too)."""
+    return processes_with(TOKEN_VARIABLE, token)
+
+
+def command_line(pid: int) -> str:
+    """What a process runs, for messages ('' once it is gone)."""
+    try:
+        raw = Path(f"/proc/{pid}/cmdline").read_bytes()
+    except OSError:
+        return ""
+    return raw.replace(b"\0", b" ").decode(errors="replace").strip()
+
+
+def running(pid: int) -> bool:
+    """Whether `pid` still runs: a zombie (exited, not yet reaped by its
+    parent, as our own children are until waited for) does not."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return False
+    return stat.rsplit(")", 1)[1].split()[0] != "Z"
+
+
+def stop_pid(pid: int) -> None:
+    """SIGTERM, then SIGKILL after 5 s, one PID."""
+    try:
+        os.kill(pid, signal.SIGTERM)
+    except ProcessLookupError:
+        return
+    deadline = time.monotonic() + 5
+    while running(pid):
+        if time.monotonic() > deadline:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, signal.SIGKILL)
+            return
+        time.sleep(0.05)

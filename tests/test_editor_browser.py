@@ -1,0 +1,355 @@
+"""The terminal editor in a real browser (Debian's Chromium through Selenium).
+
+Opens `terminals edit` on a copy of `terminals/`, adds a type from the ESI
+catalog, chooses EL3104, switches it to Compact, unticks its symbol, ticks a
+CoE object, shows an error next to a bad name, reviews the diff and saves.
+The file must equal what `select-group`/`select`/`coe` write for the same
+choices, and `ioc --list-pvs` against the simulator must list exactly the PVs
+the editor previewed. A screenshot of every page is written to
+`$FASTCS_ETHERCAT_SCREENSHOTS` (default: the test's temp dir).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import shutil
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+
+from fastcs_ethercat.editor.pv_preview import preview_pvs
+from fastcs_ethercat.sim.process import SimProcess
+from fastcs_ethercat.terminals.files import read_terminal_file
+
+from .ioc_support import IOC_COMMAND, ioc_env, new_token, processes_with_token, stop_pid
+from .test_terminals_support import ESI, FIXTURE, TERMINALS, run_cli
+
+pytestmark = pytest.mark.e2e
+
+CHROMIUM = shutil.which("chromium")
+CHROMEDRIVER = shutil.which("chromedriver")
+if CHROMIUM is None or CHROMEDRIVER is None:
+    pytest.skip(
+        "needs Debian's Chromium: apt-get install -y chromium chromium-driver",
+        allow_module_level=True,
+    )
+if not ESI.is_dir():
+    pytest.skip(
+        "needs the shared Beckhoff ESI files (../shared/esi)", allow_module_level=True
+    )
+
+from selenium import webdriver  # noqa: E402
+from selenium.common.exceptions import StaleElementReferenceException  # noqa: E402
+from selenium.webdriver.chrome.options import Options  # noqa: E402
+from selenium.webdriver.chrome.service import Service  # noqa: E402
+from selenium.webdriver.common.by import By  # noqa: E402
+from selenium.webdriver.common.keys import Keys  # noqa: E402
+from selenium.webdriver.remote.webelement import WebElement  # noqa: E402
+from selenium.webdriver.support.ui import WebDriverWait  # noqa: E402
+
+READY = "fastcs-ethercat terminals edit ready: url="
+PREFIX = "TSTEDIT:ETH1:RIO1:MOD2"
+CHAIN = {
+    "system": {"net_id": "127.0.0.1.1.1"},
+    "masters": [
+        {
+            "name": "Device 1 (EtherCAT)",
+            "slaves": [{"type": "EK1100"}, {"type": "EL3104", "pdo_group": "Compact"}],
+        }
+    ],
+}
+
+
+@pytest.fixture(scope="module")
+def work(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    work = tmp_path_factory.mktemp("editor")
+    shutil.copytree(TERMINALS, work / "terminals")
+    return work
+
+
+@pytest.fixture(scope="module")
+def screenshots(work: Path) -> Path:
+    folder = Path(os.environ.get("FASTCS_ETHERCAT_SCREENSHOTS") or work / "screens")
+    folder.mkdir(parents=True, exist_ok=True)
+    return folder
+
+
+@contextlib.contextmanager
+def running_editor(folder: Path, cache: Path, *extra: str) -> Iterator[str]:
+    """`terminals edit FOLDER` on loopback and a free port: its URL."""
+    env = dict(os.environ, XDG_CACHE_HOME=str(cache), PYTHONUNBUFFERED="1")
+    env.pop("PYTEST_CURRENT_TEST", None)  # NiceGUI would take it for its own tests
+    command = [sys.executable, "-m", "fastcs_ethercat", "terminals", "edit",
+               str(folder), "--esi", str(ESI), "--esi", str(FIXTURE),
+               "--port", "0", *extra]  # fmt: skip
+    process = subprocess.Popen(
+        command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env
+    )
+    try:
+        assert process.stdout is not None
+        deadline = time.monotonic() + 90
+        seen: list[str] = []
+        while time.monotonic() < deadline:
+            line = process.stdout.readline()
+            if not line:
+                break
+            seen.append(line)
+            if line.startswith(READY):
+                url = line.removeprefix(READY).strip()
+                assert url.startswith("http://127.0.0.1:")
+                yield url
+                return
+        raise AssertionError(f"no ready line from the editor: {''.join(seen)}")
+    finally:
+        stop_pid(process.pid)
+        process.wait(10)
+
+
+@pytest.fixture(scope="module")
+def editor(work: Path) -> Iterator[str]:
+    with running_editor(work / "terminals", work / "cache") as url:
+        yield url
+
+
+@pytest.fixture(scope="module")
+def driver() -> Iterator[Any]:
+    options = Options()
+    assert CHROMIUM is not None and CHROMEDRIVER is not None
+    options.binary_location = CHROMIUM
+    for argument in ("--headless=new", "--no-sandbox", "--disable-gpu",
+                     "--disable-dev-shm-usage", "--window-size=1500,1100"):  # fmt: skip
+        options.add_argument(argument)
+    browser = webdriver.Chrome(service=Service(CHROMEDRIVER), options=options)
+    try:
+        yield browser
+    finally:
+        browser.quit()
+
+
+def find(driver: Any, name: str, timeout: float = 20) -> WebElement:
+    """The element marked `data-test=name`, once it is there."""
+    selector = f'[data-test="{name}"]'
+    return WebDriverWait(driver, timeout).until(
+        lambda d: d.find_element(By.CSS_SELECTOR, selector)
+    )
+
+
+def field(driver: Any, name: str) -> WebElement:
+    """The native <input> of a marked input (Quasar puts the mark on it)."""
+    found = find(driver, name)
+    if found.tag_name == "input":
+        return found
+    return found.find_element(By.TAG_NAME, "input")
+
+
+def wait(check: Callable[[], bool], timeout: float = 20) -> None:
+    """Until `check()`; an element replaced while it is read (the page redraws
+    a section after each choice) only means "look again"."""
+    deadline = time.monotonic() + timeout
+    while True:
+        try:
+            if check():
+                return
+        except StaleElementReferenceException:
+            pass
+        assert time.monotonic() < deadline, "timed out"
+        time.sleep(0.1)
+
+
+def click(driver: Any, name: str) -> None:
+    """Click the marked element, finding it again if a redraw replaced it."""
+
+    def clicked() -> bool:
+        find(driver, name).click()
+        return True
+
+    wait(clicked)
+
+
+def add_from_search(driver: Any, search: WebElement, type_name: str) -> None:
+    """Type an exact type name in the catalog search, click its "Add"."""
+    search.send_keys(Keys.CONTROL, "a")
+    search.send_keys(type_name)
+
+    def add() -> bool:
+        buttons = driver.find_elements(By.CSS_SELECTOR, 'button[data-test^="add-"]')
+        names = [b.get_attribute("data-test") for b in buttons]
+        if names != [f"add-{type_name}"]:
+            return False
+        buttons[0].click()
+        return True
+
+    wait(add)
+
+
+def choose(driver: Any, name: str, text: str) -> None:
+    """Pick `text` in the marked select's menu."""
+    click(driver, name)
+
+    def pick() -> bool:
+        items = driver.find_elements(By.CSS_SELECTOR, ".q-menu .q-item")
+        item = next((e for e in items if e.text.strip() == text), None)
+        if item is None:
+            return False
+        item.click()
+        return True
+
+    wait(pick)
+
+
+def checked(element: WebElement) -> bool:
+    return element.get_attribute("aria-checked") == "true"
+
+
+def test_editor_session_matches_the_cli_and_the_ioc(
+    editor: str, driver: Any, work: Path, screenshots: Path
+) -> None:
+    folder = work / "terminals"
+    driver.get(editor)
+    find(driver, "open-EL3104")
+    assert "1 of 2" in find(driver, "types").text
+    driver.save_screenshot(str(screenshots / "00-types.png"))
+
+    # add a type from the catalog: one that exists is refused next to the field
+    search = field(driver, "search")
+    search.send_keys("ana. output")
+    driver.execute_script("arguments[0].scrollIntoView()", find(driver, "add-EL4134"))
+    driver.save_screenshot(str(screenshots / "01-search.png"))
+    add_from_search(driver, search, "EL4134")
+    wait(lambda: "exists already" in find(driver, "add-error").text)
+    add_from_search(driver, search, "EL3102")
+    find(driver, "symbols")
+    assert driver.current_url.endswith("/type/EL3102")
+    assert (folder / "EL3102.yaml").is_file()
+    driver.save_screenshot(str(screenshots / "02-added-EL3102.png"))
+
+    # a type that is not there is a message, not a traceback page
+    driver.get(f"{editor}type/NOPE")
+    assert "no terminal type 'NOPE'" in find(driver, "page-error").text
+
+    # the oversampling factor, then back to the file as it is
+    driver.get(f"{editor}type/EL3702")
+    choose(driver, "factor", "20")
+    wait(lambda: find(driver, "state").text == "unsaved changes")
+    assert "x 20 samples" in find(driver, "symbol-facts-1").text
+    driver.save_screenshot(str(screenshots / "03-EL3702-factor.png"))
+    click(driver, "revert")
+    wait(lambda: find(driver, "state").text == "saved")
+
+    driver.get(f"{editor}type/EL3104")
+    choose(driver, "group", "Compact")
+    wait(lambda: checked(find(driver, "symbol-1")))
+    click(driver, "symbol-1")
+    wait(lambda: not checked(find(driver, "symbol-1")))
+    click(driver, "coe-0x8000")
+    wait(lambda: checked(find(driver, "coe-0x8000")))
+    prefix = field(driver, "prefix")
+    prefix.send_keys(Keys.CONTROL, "a")
+    prefix.send_keys(PREFIX, Keys.TAB)  # leaving the field applies it
+    wait(lambda: PREFIX in find(driver, "coe-pvs-0x8000").text)
+    name = field(driver, "name-1")
+    name.send_keys(Keys.CONTROL, "a")
+    name.send_keys("Bad Name", Keys.TAB)
+    wait(lambda: "is not a fastcs_name" in find(driver, "symbol-error-1").text)
+    assert "unsaved changes" in find(driver, "state").text
+    driver.save_screenshot(str(screenshots / "04-EL3104-compact.png"))
+
+    click(driver, "review")
+    diff = find(driver, "diff")
+    wait(lambda: "selected_pdo_group: Compact" in diff.text)
+    driver.save_screenshot(str(screenshots / "05-diff.png"))
+    click(driver, "save")
+    wait(lambda: find(driver, "state").text == "saved")
+    driver.save_screenshot(str(screenshots / "06-saved.png"))
+
+    # the same choices from the command line give the same bytes
+    by_cli = work / "cli" / "EL3104.yaml"
+    by_cli.parent.mkdir()
+    shutil.copy(TERMINALS / "EL3104.yaml", by_cli)
+    assert run_cli("terminals", "select-group", str(by_cli), "Compact").code == 0
+    assert run_cli("terminals", "select", str(by_cli), "--off",
+                   "AI Compact Channel {channel}").code == 0  # fmt: skip
+    assert run_cli("terminals", "coe", str(by_cli), "0x8000").code == 0
+    assert (folder / "EL3104.yaml").read_bytes() == by_cli.read_bytes()
+
+    # and the IOC serves exactly the PVs the editor showed
+    saved = read_terminal_file(folder / "EL3104.yaml")["EL3104"]
+    expected = set()
+    for preview in preview_pvs(saved, "EL3104", PREFIX):
+        expected |= {preview.pv, *([f"{preview.pv}_RBV"] if preview.writable else [])}
+    served = _served_pvs(work, folder)
+    assert served == expected
+
+
+def _served_pvs(work: Path, folder: Path) -> set[str]:
+    """`ioc --list-pvs` of the edited files against a simulated EL3104."""
+    chain = work / "chain.yaml"
+    chain.write_text(yaml.safe_dump(CHAIN), encoding="utf-8")
+    token = new_token()
+    env = ioc_env(token)
+    try:
+        with SimProcess(chain=chain, terminals=folder, env=env) as sim:
+            config = work / "ioc.yaml"
+            config.write_text(
+                yaml.safe_dump(
+                    {
+                        "prefix": PREFIX.split(":")[0],
+                        "target": sim.pyads_ip,
+                        "ams_net_id": sim.net_id,
+                        "terminal_dirs": [str(folder)],
+                        "ads_timeout_ms": 5000,  # a loaded shared machine
+                    }
+                ),
+                encoding="utf-8",
+            )
+            done = subprocess.run(
+                [*IOC_COMMAND, "--config", str(config), "--list-pvs"],
+                env=env, capture_output=True, text=True, timeout=120,
+            )  # fmt: skip
+    finally:
+        for pid in processes_with_token(token):
+            stop_pid(pid)
+    assert done.returncode == 0, done.stderr[-2000:]
+    served = set()
+    for line in done.stdout.splitlines():
+        pv, _access, _kind, source = line.split(" ", 3)
+        ours = pv.startswith(f"{PREFIX}:") and not pv.endswith(":CoeRefresh")
+        if ours and source != "ioc" and ".WcState." not in source:
+            served.add(pv)
+    return served
+
+
+def test_target_shows_each_live_terminal_and_a_mismatch(
+    driver: Any, tmp_path: Path, screenshots: Path
+) -> None:
+    """EL3104's file selects Standard; the simulated terminal runs Compact."""
+    folder = tmp_path / "terminals"
+    shutil.copytree(TERMINALS, folder)
+    chain = tmp_path / "chain.yaml"
+    chain.write_text(yaml.safe_dump(CHAIN), encoding="utf-8")
+    with (
+        SimProcess(chain=chain, terminals=folder) as sim,
+        running_editor(
+            folder,
+            tmp_path / "cache",
+            "--target",
+            sim.pyads_ip,
+            "--ams-net-id",
+            sim.net_id,
+        ) as url,  # fmt: skip
+    ):
+        driver.get(f"{url}type/EL3104")
+        live = find(driver, "live-Term 2 (EL3104)")
+        assert live.text == (
+            "Term 2 (EL3104): runs Compact - the file selects Standard: MISMATCH"
+        )
+        driver.save_screenshot(str(screenshots / "07-live-mismatch.png"))
+        choose(driver, "group", "Compact")
+        wait(lambda: "MISMATCH" not in find(driver, "live-Term 2 (EL3104)").text)
