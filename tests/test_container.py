@@ -56,7 +56,9 @@ def _podman(*args: str, timeout: float = 120) -> str:
 
 
 @pytest.fixture(scope="module")
-def image() -> str:
+def image() -> Iterator[str]:
+    """The image, built now; removed afterwards (vfs keeps a full copy of
+    each image, and the next run builds again: only the base is kept)."""
     started = time.monotonic()
     done = subprocess.run(
         [str(REPO_ROOT / "deploy" / "build-image.sh"), IMAGE],
@@ -70,7 +72,8 @@ def image() -> str:
         f"\nimage {IMAGE}: built in {time.monotonic() - started:.0f} s, "
         f"{size / 1e6:.0f} MB"
     )
-    return IMAGE
+    yield IMAGE
+    subprocess.run([PODMAN, "rmi", "--force", IMAGE], capture_output=True)
 
 
 def _env_flags(env: dict[str, str]) -> list[str]:
