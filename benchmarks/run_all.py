@@ -25,6 +25,9 @@ def main() -> None:
         str(Path(arg).resolve()) if previous in PATH_OPTIONS else arg
         for previous, arg in zip(["", *given[:-1]], given, strict=True)
     ]
+    shared_esi = REPO_ROOT.parent / "shared" / "esi"
+    if "--esi" not in arguments and shared_esi.is_dir():
+        arguments += ["--esi", str(shared_esi)]  # the README's figures
     os.chdir(REPO_ROOT)
     sys.argv = ["fastcs-ethercat", "bench", *arguments]
     app()

@@ -1,7 +1,8 @@
-"""The root CLI: version and user-error handling."""
+"""The CLI as a user meets it: version, help, log levels, one-line errors."""
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 
@@ -40,3 +41,78 @@ def test_unknown_command_exits_nonzero_without_traceback() -> None:
     )
     assert done.returncode != 0
     assert "Traceback" not in done.stderr
+
+
+def _help(*command: str) -> str:
+    done = subprocess.run(
+        [sys.executable, "-m", "fastcs_ethercat", *command, "--help"],
+        capture_output=True,
+        text=True,
+        env={**os.environ, "COLUMNS": "120"},
+    )
+    assert done.returncode == 0, done.stderr
+    return done.stdout
+
+
+@pytest.mark.parametrize(
+    "command",
+    [(), ("ioc",), ("ioc", "schema"), ("demo",), ("sim",), ("bench",), ("terminals",)]
+    + [("terminals", name) for name in ("list", "show", "generate", "check")],
+    ids=lambda command: " ".join(command) or "root",
+)
+def test_help_shows_no_type_after_flags(command: tuple[str, ...]) -> None:
+    text = _help(*command)
+
+    assert "<bool>" not in text
+    assert "--help" in text
+
+
+@pytest.mark.parametrize("command", ["ioc", "demo", "sim", "bench"])
+def test_every_command_takes_a_log_level(command: str) -> None:
+    assert "--log-level [debug|info|warning|error|critical]" in _help(command)
+
+
+@pytest.mark.parametrize("command", ["sim", "bench", "demo"])
+def test_single_commands_do_not_promise_subcommands(command: str) -> None:
+    assert "COMMAND [ARGS]" not in _help(command)
+
+
+def test_bench_only_shows_its_sections_and_they_are_the_runners() -> None:
+    from fastcs_ethercat.bench.runner import SECTIONS
+    from fastcs_ethercat.cli.bench import SECTIONS as CHOICES
+
+    assert CHOICES == SECTIONS
+    assert "--only [esi|start|scan|latency]" in _help("bench")
+
+
+def test_bench_and_terminals_share_one_esi_default() -> None:
+    default = "default: the zip fetched by `terminals update-cache`"
+
+    assert default in " ".join(_help("bench").split())
+    assert "default: the zip fetched by `update-cache`" in " ".join(
+        _help("terminals", "list").split()
+    )
+
+
+def test_a_bad_log_level_is_one_error_not_a_traceback() -> None:
+    done = subprocess.run(
+        [sys.executable, "-m", "fastcs_ethercat", "--log-level", "loud", "ioc"],
+        capture_output=True,
+        text=True,
+    )
+
+    assert done.returncode == 2
+    assert "Traceback" not in done.stderr
+    assert "'loud' is not one of" in done.stderr
+
+
+def test_ioc_without_a_config_says_what_to_give() -> None:
+    done = subprocess.run(
+        [sys.executable, "-m", "fastcs_ethercat", "ioc"], capture_output=True, text=True
+    )
+
+    assert done.returncode == 2
+    assert done.stderr.strip().splitlines() == [
+        "error: give the IOC configuration with --config FILE "
+        "(`fastcs-ethercat ioc schema` prints its JSON schema)"
+    ]

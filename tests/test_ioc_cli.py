@@ -1,12 +1,14 @@
 """`fastcs-ethercat ioc` and `demo` as a user runs them (subprocesses).
 
-`demo` starts the simulator and the IOC itself; the test runs the `caget`
-line it prints. Everything is stopped by PID, including the simulator the
-demo started (it carries the test's token in its environment).
+`demo` starts the simulator and the IOC itself; the test pastes the lines
+it prints (caget, pvget, caget -S for text) into a shell without EPICS
+settings. Everything is stopped by PID, including the simulator the demo
+started and the clients' caRepeater (they carry the test's token).
 """
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -14,7 +16,10 @@ from pathlib import Path
 import pytest
 
 from tests.conftest import REPO_ROOT
-from tests.ioc_support import caget, ioc_env, new_token, start_ioc
+from tests.ioc_support import ioc_env, start_ioc
+from tests.processes import SESSION_VARIABLE, TOKEN_VARIABLE, new_token
+
+pytestmark = pytest.mark.e2e
 
 pytestmark = pytest.mark.e2e
 
@@ -79,22 +84,41 @@ def test_a_target_that_does_not_answer_is_a_user_error() -> None:
     )
 
 
-def test_demo_serves_and_its_caget_line_works() -> None:
+def test_demo_prints_lines_that_read_numbers_and_text_from_a_bare_shell(
+    tmp_path: Path,
+) -> None:
     token = new_token()
     prefix = f"DM{token[:6].upper()}"
     demo = start_ioc([*IOC, "demo", "--prefix", prefix], prefix, ioc_env(token), token)
     try:
         listed = demo.wait_for_line(r"^demo: \d+ PVs listed in ", 90)
-        line = demo.wait_for_line(r"^demo: try ", 30)
-        command = line.split("try", 1)[1].split()
-        pv = command[-1]
-        values = caget(demo, pv)
+        lines = [demo.wait_for_line(r"^demo: (try|text) ", 30) for _ in range(3)]
+        bare_shell = {  # no EPICS settings but the session's one CA repeater
+            "PATH": os.environ["PATH"],
+            "HOME": str(tmp_path),
+            "EPICS_CA_REPEATER_PORT": os.environ.get("EPICS_CA_REPEATER_PORT", ""),
+            TOKEN_VARIABLE: token,
+            SESSION_VARIABLE: os.environ.get(SESSION_VARIABLE, ""),
+        }
+        outputs = [
+            subprocess.run(
+                ["bash", "-c", line.split(" ", 2)[2].strip()],
+                env=bare_shell,
+                capture_output=True,
+                text=True,
+                timeout=60,
+            ).stdout
+            for line in lines
+        ]
         listing = Path(listed.rsplit(" in ", 1)[1].strip())
         names = [row.split(" ", 1)[0] for row in listing.read_text().splitlines()]
     finally:
         demo.stop()
 
-    assert command[0] == "caget"
-    assert pv == f"{prefix}:ETH1:RIO1:MOD5:AICompactCh1"
-    assert -32768 <= int(values[pv]) <= 32767
+    pv = f"{prefix}:ETH1:RIO1:MOD5:AICompactCh1"
+    caget_out, pvget_out, text_out = outputs
+    assert caget_out.split()[0] == pv and -32768 <= int(caget_out.split()[1]) <= 32767
+    assert pv in pvget_out
+    assert text_out.split() == [f"{prefix}:ETH1:RIO1:MOD5:AlStateText", "OP"]
     assert pv in names and len(names) > 400
+    assert listing.parent.stat().st_mode & 0o777 == 0o700

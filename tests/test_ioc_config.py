@@ -7,7 +7,13 @@ from pathlib import Path
 import pytest
 
 from fastcs_ethercat.errors import UserError
-from fastcs_ethercat.ioc.config import IocConfig, RouteConfig, load_ioc_config
+from fastcs_ethercat.ioc.config import (
+    MAX_CONFIG_BYTES,
+    IocConfig,
+    RouteConfig,
+    load_ioc_config,
+)
+from fastcs_ethercat.shipped import BUILTIN_TERMINALS_DIR
 
 FULL = """\
 prefix: BL01T-EA-ECAT-01
@@ -61,7 +67,8 @@ def test_minimal_config_has_documented_defaults() -> None:
     assert config.ams_net_id is None
     assert config.poll_period() == 0.1
     assert (config.transports.ca, config.transports.pva) == (True, True)
-    assert config.terminal_dirs == (Path("terminals"),)
+    assert config.terminal_dirs == (BUILTIN_TERMINALS_DIR,)
+    assert (BUILTIN_TERMINALS_DIR / "EL3104.yaml").is_file()
 
 
 def test_flags_override_the_file_and_unset_flags_do_not(tmp_path: Path) -> None:
@@ -121,7 +128,7 @@ def test_flag_errors_say_they_came_from_the_command_line() -> None:
 @pytest.mark.parametrize(
     ("text", "where"),
     [
-        ("prefix: [unclosed\n", "line 2"),
+        ("prefix: [unclosed\n", "2:1"),
         ("- a list\n", None),
         ("prefix: X\n", "target"),
     ],
@@ -160,3 +167,46 @@ def test_route_password_from_file_or_environment(
         RouteConfig(password_env="NOT_SET_FOR_TEST").password()
     with pytest.raises(UserError, match="cannot read the password file"):
         RouteConfig(password_file=tmp_path / "missing").password()
+
+
+@pytest.mark.parametrize(
+    ("content", "message"),
+    [
+        (b"prefix: X\xff\xfe\n", "not UTF-8 text (byte 0xff at offset 9)"),
+        (b"prefix: " + b"[" * 5000 + b"]" * 5000 + b"\n", "nesting depth"),
+        (b"prefix: X\nprefix: Y\n", "duplicate key 'prefix'"),
+        (b"x" * (MAX_CONFIG_BYTES + 1), "larger than 4096 KiB"),
+    ],
+)
+def test_hostile_files_are_one_line_errors(
+    tmp_path: Path, content: bytes, message: str
+) -> None:
+    path = tmp_path / "ioc.yaml"
+    path.write_bytes(content)
+
+    with pytest.raises(UserError) as error:
+        load_ioc_config(path)
+
+    assert str(error.value).startswith(f"{path}:")
+    assert message in str(error.value)
+    assert "\n" not in str(error.value)
+
+
+def test_an_endless_device_is_read_bounded() -> None:
+    with pytest.raises(UserError, match=r"^/dev/zero: larger than"):
+        load_ioc_config(Path("/dev/zero"))
+
+
+def test_paths_resolve_against_the_file_wherever_it_is_loaded_from(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    folder = tmp_path / "config"
+    folder.mkdir()
+    path = _write(folder, FULL)
+    monkeypatch.chdir(tmp_path)
+
+    config = load_ioc_config(Path("config") / "ioc.yaml")
+
+    assert config.screens_dir == Path("config") / "screens"
+    assert config.terminal_dirs[0] == Path("config") / "terminals"
+    assert (tmp_path / config.terminal_dirs[0]).parent == path.parent

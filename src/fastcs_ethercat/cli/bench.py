@@ -5,25 +5,36 @@
 Sections: esi (catalog, regenerate), start (IOC start and peak RSS per chain
 size, with and without CoE), scan (requests per cycle, CPU, updates received),
 latency (value change to CA monitor event). Everything on loopback, the
-simulator and the IOC in their own processes. Run from a checkout: it needs
-`terminals/`, `ioc/demo-chain.yaml` and the ESI files in `../shared/esi`.
+simulator and the IOC in their own processes. The terminal types and the
+demo chain default to the shipped ones; the ESI source to the same as every
+`terminals` command (`--esi`, else the zip `terminals update-cache` fetched).
 """
 
 from __future__ import annotations
 
 import json
+from enum import StrEnum
 from pathlib import Path
 from typing import Annotated
 
 import typer
 
+from fastcs_ethercat.cli.options import LogLevelOption, apply_log_level
 from fastcs_ethercat.errors import UserError
+from fastcs_ethercat.shipped import BUILTIN_TERMINALS_DIR, DEMO_CHAIN
 
-bench_app = typer.Typer(
-    help="Benchmarks: ESI, IOC start, scan cost, latency, memory (loopback).",
-    pretty_exceptions_enable=False,
-    add_completion=False,
-)
+
+class Section(StrEnum):
+    """The benchmark sections (`bench.runner.SECTIONS`, which a test keeps
+    equal), as `--only` choices; the runner itself loads only when run."""
+
+    ESI = "esi"
+    START = "start"
+    SCAN = "scan"
+    LATENCY = "latency"
+
+
+SECTIONS = tuple(str(section) for section in Section)
 
 
 def _need_dir(path: Path, option: str) -> Path:
@@ -32,44 +43,65 @@ def _need_dir(path: Path, option: str) -> Path:
     return path
 
 
-@bench_app.callback(invoke_without_command=True)
-def bench(
+def bench_command(
     quick: Annotated[
         bool, typer.Option("--quick", help="A reduced set, under 3 minutes.")
     ] = False,
     json_file: Annotated[
-        Path | None, typer.Option("--json", help="Also write the figures here.")
+        Path | None,
+        typer.Option("--json", metavar="FILE", help="Also write the figures here."),
     ] = None,
     only: Annotated[
-        list[str] | None,
-        typer.Option("--only", help="Run only this section (repeatable)."),
+        list[Section] | None,
+        typer.Option(
+            "--only",
+            metavar=f"[{'|'.join(SECTIONS)}]",
+            help="Run only this section (repeatable).",
+        ),
     ] = None,
     terminals: Annotated[
-        Path, typer.Option("--terminals", help="Directory of terminal YAML.")
-    ] = Path("terminals"),
+        Path,
+        typer.Option(
+            "--terminals",
+            metavar="DIR",
+            help="Directory of terminal YAML (default: the shipped types).",
+            show_default=False,
+        ),
+    ] = BUILTIN_TERMINALS_DIR,
     esi: Annotated[
-        Path, typer.Option("--esi", help="Directory of Beckhoff ESI files.")
-    ] = Path("..") / "shared" / "esi",
+        Path | None,
+        typer.Option(
+            "--esi",
+            metavar="SRC",
+            help="ESI directory, XML file or Beckhoff_EtherCAT_XML.zip; "
+            "default: the zip fetched by `terminals update-cache`.",
+        ),
+    ] = None,
     demo_chain: Annotated[
-        Path, typer.Option("--demo-chain", help="Chain whose mix start-up repeats.")
-    ] = Path("ioc") / "demo-chain.yaml",
+        Path,
+        typer.Option(
+            "--demo-chain",
+            metavar="FILE",
+            help="Chain whose mix start-up repeats (default: the demo's).",
+            show_default=False,
+        ),
+    ] = DEMO_CHAIN,
+    log_level: LogLevelOption = None,
 ) -> None:
-    """Measure and print; with --json also write the figures as JSON."""
+    """Benchmarks: ESI, IOC start, scan cost, latency, memory (loopback).
+
+    Measures and prints; with --json also writes the figures as JSON.
+    """
+    apply_log_level(log_level)
     from fastcs_ethercat.bench.context import FULL_PLAN, QUICK_PLAN, BenchContext
     from fastcs_ethercat.bench.esi_sections import default_extra_esi
     from fastcs_ethercat.bench.report import summary_lines, write_json
-    from fastcs_ethercat.bench.runner import SECTIONS, run_bench
+    from fastcs_ethercat.bench.runner import run_bench
+    from fastcs_ethercat.terminals.esi_sources import esi_sources
 
-    sections = tuple(only or SECTIONS)
-    unknown = sorted(set(sections) - set(SECTIONS))
-    if unknown:
-        raise UserError(
-            f"unknown section {', '.join(unknown)}; choose from {', '.join(SECTIONS)}",
-            where="--only",
-        )
+    sections = tuple(str(section) for section in only) if only else SECTIONS
     _need_dir(terminals, "--terminals")
-    if "esi" in sections:
-        _need_dir(esi, "--esi")
+    esi_source = esi_sources([esi] if esi else None)[0] if "esi" in sections else None
     if not demo_chain.is_file():
         raise UserError("not found; give a chain with --demo-chain", path=demo_chain)
     plan = QUICK_PLAN if quick else FULL_PLAN
@@ -78,7 +110,7 @@ def bench(
     def context_for(scratch: Path) -> BenchContext:
         return BenchContext(
             terminals=terminals.resolve(),
-            esi=esi.resolve(),
+            esi=(esi_source or Path()).resolve(),
             demo_chain=demo_chain.resolve(),
             scratch=scratch,
             plan=plan,

@@ -1,61 +1,93 @@
-"""`fastcs-ethercat ioc` (serve a TwinCAT target) and `fastcs-ethercat demo`.
+"""`fastcs-ethercat ioc` (serve a TwinCAT target), `ioc schema`, and `demo`.
 
     fastcs-ethercat ioc --config ioc/bl01.yaml [--prefix P] [--target HOST[:PORT]]
-                        [--ams-net-id ID] [--poll-rate HZ] [--read-only] [--list-pvs]
-    fastcs-ethercat demo [--prefix P]
+                        [--ams-net-id ID] [--poll-rate HZ] [--read-only]
+                        [--acf FILE] [--list-pvs] [--log-level LEVEL]
+    fastcs-ethercat ioc schema
+    fastcs-ethercat demo [--prefix P] [--log-level LEVEL]
 
 Flags override the file. `--list-pvs` connects, discovers, prints every PV
 (`NAME ACCESS TYPE SOURCE`, one a line, sorted) and exits; warnings go to
-stderr as `warning: ...` lines.
+stderr as log lines.
 """
 
 from __future__ import annotations
 
+import logging
 import os
 import sys
-import tempfile
 from pathlib import Path
-from typing import Annotated, Final
+from typing import Annotated
 
 import typer
 
+from fastcs_ethercat.cli.demo_hints import DemoHints, write_pv_list
+from fastcs_ethercat.cli.options import LogLevelOption, apply_log_level, plain_typer
+from fastcs_ethercat.cli.ports import demo_ports
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.loopback import EPICS_LOOPBACK_ENV
+from fastcs_ethercat.shipped import DEMO_CHAIN, DEMO_CONFIG
 
-DEMO_CONFIG: Final = Path("ioc") / "demo.yaml"
-DEMO_CHAIN: Final = Path("ioc") / "demo-chain.yaml"
+log = logging.getLogger(__name__)
+
+ioc_app = plain_typer(
+    "Serve every terminal of a TwinCAT target as EPICS PVs (CA and PVA).",
+)
 
 
+@ioc_app.callback(invoke_without_command=True)
 def ioc_command(
+    context: typer.Context,
     config: Annotated[
-        Path, typer.Option("--config", help="IOC instance configuration (YAML).")
-    ],
+        Path | None,
+        typer.Option(
+            "--config", metavar="FILE", help="IOC instance configuration (YAML)."
+        ),
+    ] = None,
     prefix: Annotated[
-        str | None, typer.Option("--prefix", help="PV prefix (overrides the file).")
+        str | None,
+        typer.Option("--prefix", metavar="P", help="PV prefix (overrides the file)."),
     ] = None,
     target: Annotated[
         str | None,
-        typer.Option("--target", help="TwinCAT host[:ADS TCP port]."),
+        typer.Option(
+            "--target", metavar="HOST[:PORT]", help="TwinCAT host[:ADS TCP port]."
+        ),
     ] = None,
     ams_net_id: Annotated[
-        str | None, typer.Option("--ams-net-id", help="AMS NetId of the target.")
+        str | None,
+        typer.Option("--ams-net-id", metavar="ID", help="AMS NetId of the target."),
     ] = None,
     poll_rate: Annotated[
-        float | None, typer.Option("--poll-rate", help="Poll rate in Hz.")
+        float | None, typer.Option("--poll-rate", metavar="HZ", help="Poll rate.")
     ] = None,
     read_only: Annotated[
         bool, typer.Option("--read-only", help="Serve every output read-only.")
     ] = False,
     acf: Annotated[
         Path | None,
-        typer.Option("--acf", help="EPICS access security file (CA writes)."),
+        typer.Option(
+            "--acf", metavar="FILE", help="EPICS access security file (CA writes)."
+        ),
     ] = None,
     list_pvs: Annotated[
         bool,
         typer.Option("--list-pvs", help="Print every PV with type and source; exit."),
     ] = False,
+    log_level: LogLevelOption = None,
 ) -> None:
-    """Serve every terminal of a TwinCAT target as EPICS PVs (CA and PVA)."""
+    """Serve every terminal of a TwinCAT target as EPICS PVs (CA and PVA).
+
+    `ioc schema` prints the JSON schema of the configuration file.
+    """
+    if context.invoked_subcommand is not None:
+        return
+    apply_log_level(log_level)
+    if config is None:
+        raise UserError(
+            "give the IOC configuration with --config FILE "
+            "(`fastcs-ethercat ioc schema` prints its JSON schema)"
+        )
     from fastcs_ethercat.ioc.fastcs_adapter import check_installed
 
     check_installed()
@@ -78,17 +110,29 @@ def ioc_command(
     if list_pvs:
         entries, warnings = app.list_pvs(settings)
         for warning in warnings:
-            print(f"warning: {warning}", file=sys.stderr)
+            log.warning("%s", warning)
         for entry in entries:
             print(entry.line())
         return
     app.serve(settings)
 
 
+@ioc_app.command("schema")
+def schema_command() -> None:
+    """Print the JSON schema of the IOC configuration file."""
+    from fastcs_ethercat.ioc.config import config_schema_text
+
+    sys.stdout.write(config_schema_text())
+
+
 def demo_command(
-    prefix: Annotated[str, typer.Option("--prefix", help="PV prefix.")] = "DEMO",
+    prefix: Annotated[
+        str, typer.Option("--prefix", metavar="P", help="PV prefix.")
+    ] = "DEMO",
+    log_level: LogLevelOption = None,
 ) -> None:
     """Run the simulator with the demo chain and an IOC against it (loopback)."""
+    apply_log_level(log_level)
     from fastcs_ethercat.ioc.fastcs_adapter import check_installed
 
     check_installed()
@@ -97,15 +141,10 @@ def demo_command(
     from fastcs_ethercat.ioc.controllers.root import RootController
     from fastcs_ethercat.sim.process import SimProcess
 
-    for needed in (DEMO_CONFIG, DEMO_CHAIN):
-        if not needed.is_file():
-            raise UserError(
-                "not found; run the demo from a checkout of fastcs-ethercat",
-                path=needed,
-            )
     for variable, value in EPICS_LOOPBACK_ENV.items():
         os.environ.setdefault(variable, value)
-    listing = Path(tempfile.gettempdir()) / f"fastcs-ethercat-{prefix}-pvs.txt"
+    ports = demo_ports(os.environ)
+    os.environ.update(ports.env())
     with SimProcess(chain=DEMO_CHAIN) as sim:
         settings = load_ioc_config(
             DEMO_CONFIG,
@@ -114,18 +153,13 @@ def demo_command(
 
         def ready(root: RootController) -> None:
             entries = root.pvs()
-            listing.write_text("".join(entry.line() + "\n" for entry in entries))
-            first = next(
-                (e.name for e in entries if e.name.endswith(":AICompactCh1")),
-                entries[0].name,
-            )
+            hints = DemoHints(ports, [entry.name for entry in entries])
             print(f"demo: simulator on {sim.pyads_ip} (NetId {sim.net_id})")
-            print(f"demo: {len(entries)} PVs listed in {listing}")
-            print(f"demo: try   caget {first}")
+            for line in hints.port_lines():
+                print(line)
+            print(write_pv_list(prefix, [entry.line() for entry in entries]))
+            for line in hints.try_lines():
+                print(line)
             print("demo: Ctrl-C to stop", flush=True)
 
         app.serve(settings, on_ready=ready)
-
-
-if __name__ == "__main__":
-    typer.run(ioc_command)

@@ -7,21 +7,18 @@ starts), with the same one-line handling of user errors as the main CLI.
 from __future__ import annotations
 
 import asyncio
-import logging
-import sys
 from pathlib import Path
 from typing import Annotated
 
 import typer
 
 from fastcs_ethercat.ads.constants import ADS_TCP_PORT, ADS_UDP_PORT
+from fastcs_ethercat.cli.options import LogLevelOption, apply_log_level, plain_typer
 from fastcs_ethercat.errors import UserError
+from fastcs_ethercat.logs import LogLevel, setup_logging
+from fastcs_ethercat.shipped import BUILTIN_TERMINALS_DIR
 
-sim_app = typer.Typer(
-    help="Run a simulated TwinCAT system with EtherCAT masters that speaks ADS.",
-    pretty_exceptions_enable=False,
-    add_completion=False,
-)
+SIM_HELP = "Run a simulated TwinCAT system with EtherCAT masters that speaks ADS."
 
 
 def _check_port(value: int | None, option: str) -> None:
@@ -29,56 +26,56 @@ def _check_port(value: int | None, option: str) -> None:
         raise UserError(f"{option} must be 0..65535 (0 = any free port), got {value}")
 
 
-def default_terminals_dir(chain: Path) -> Path:
-    """`terminals/` in the working directory, else beside the chain file or one
-    level up (a chain in `ioc/` of a checkout finds the checkout's)."""
-    candidates = [
-        Path("terminals"),
-        chain.parent / "terminals",
-        chain.parent.parent / "terminals",
-    ]
-    for candidate in candidates:
-        if candidate.is_dir():
-            return candidate
-    raise UserError(
-        "no terminals directory found (looked in ./terminals and beside the "
-        "chain file); give one with --terminals",
-        path=chain,
-    )
-
-
-@sim_app.callback(invoke_without_command=True)
-def sim(
+def sim_command(
     chain: Annotated[
         Path,
         typer.Option(
-            "--chain", help="Chain description (YAML): masters and their terminals."
+            "--chain",
+            metavar="FILE",
+            help="Chain description (YAML): masters and their terminals.",
         ),
     ],
     terminals: Annotated[
-        Path | None, typer.Option("--terminals", help="Directory of terminal YAML.")
+        Path | None,
+        typer.Option(
+            "--terminals",
+            metavar="DIR",
+            help="Directory of terminal YAML (default: the shipped types).",
+        ),
     ] = None,
-    host: Annotated[str, typer.Option("--host", help="Address to bind.")] = (
-        "127.0.0.1"
-    ),
+    host: Annotated[
+        str, typer.Option("--host", metavar="ADDRESS", help="Address to bind.")
+    ] = "127.0.0.1",
     port: Annotated[
-        int, typer.Option("--port", help="AMS/TCP port (0 = any free port).")
+        int,
+        typer.Option("--port", metavar="PORT", help="AMS/TCP port (0 = free)."),
     ] = ADS_TCP_PORT,
     udp_port: Annotated[
-        int, typer.Option("--udp-port", help="UDP discovery/add-route port (0 = free).")
+        int,
+        typer.Option(
+            "--udp-port",
+            metavar="PORT",
+            help="UDP discovery and add-route port (0 = free).",
+        ),
     ] = ADS_UDP_PORT,
     control_port: Annotated[
         int | None,
-        typer.Option("--control-port", help="HTTP JSON control API port (0 = free)."),
+        typer.Option(
+            "--control-port",
+            metavar="PORT",
+            help="HTTP JSON control API port (0 = free).",
+        ),
     ] = None,
-    seed: Annotated[int, typer.Option("--seed", help="Seed of simulated signals.")] = 0,
+    seed: Annotated[
+        int, typer.Option("--seed", metavar="N", help="Seed of simulated signals.")
+    ] = 0,
     cycle_ms: Annotated[
         float | None,
-        typer.Option("--cycle-ms", help="Task cycle in ms (default: the chain's)."),
+        typer.Option(
+            "--cycle-ms", metavar="MS", help="Task cycle in ms (default: the chain's)."
+        ),
     ] = None,
-    log_level: Annotated[
-        str, typer.Option("--log-level", help="Python log level (stderr).")
-    ] = "WARNING",
+    log_level: LogLevelOption = None,
     exit_with_stdin: Annotated[
         bool,
         typer.Option(
@@ -97,14 +94,10 @@ def sim(
     if not chain.is_file():
         raise UserError("chain file not found", path=chain)
     if terminals is None:
-        terminals = default_terminals_dir(chain)
+        terminals = BUILTIN_TERMINALS_DIR
     elif not terminals.is_dir():
         raise UserError("terminals directory not found", path=terminals)
-    logging.basicConfig(
-        level=log_level.upper(),
-        stream=sys.stderr,
-        format="%(asctime)s sim %(levelname)s %(name)s: %(message)s",
-    )
+    apply_log_level(log_level)
 
     from fastcs_ethercat.sim.chain import load_chain
     from fastcs_ethercat.sim.runner import SimulatorConfig, serve
@@ -125,12 +118,14 @@ def sim(
 
 
 def main() -> None:
-    """Entry point for `python -m fastcs_ethercat.cli.sim`."""
-    try:
-        sim_app(prog_name="fastcs-ethercat sim")
-    except UserError as error:
-        typer.echo(f"error: {error}", err=True)
-        sys.exit(error.exit_code)
+    """Entry point for `python -m fastcs_ethercat.cli.sim` (what `SimProcess`
+    starts): the sim command alone, logging at warning unless told."""
+    from fastcs_ethercat.cli import run_cli
+
+    setup_logging(LogLevel.WARNING)
+    app = plain_typer(SIM_HELP)
+    app.command()(sim_command)
+    run_cli(app, "fastcs-ethercat sim")
 
 
 if __name__ == "__main__":

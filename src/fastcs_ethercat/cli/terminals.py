@@ -58,19 +58,25 @@ from fastcs_ethercat.terminals.selection import (
 terminals_app = typer.Typer(
     help="Read Beckhoff ESI XML and generate or regenerate terminal YAML.",
     no_args_is_help=True,
+    rich_markup_mode=None,
 )
 
 EsiOption = Annotated[
     list[Path] | None,
     typer.Option(
         "--esi",
+        metavar="SRC",
         help="ESI directory, XML file or Beckhoff_EtherCAT_XML.zip (repeatable); "
         "default: the zip fetched by `update-cache`.",
     ),
 ]
 RevisionOption = Annotated[
     str | None,
-    typer.Option("--revision", help="Revision number (0x00110000); default: newest."),
+    typer.Option(
+        "--revision",
+        metavar="REV",
+        help="Revision number (0x00110000); default: newest.",
+    ),
 ]
 
 

@@ -4,16 +4,22 @@ Errors come back as one `UserError` line naming the file and the key
 (`ioc/bl01.yaml:route.password_file: ...`). A route password never appears in
 the file: the file names an environment variable or a secret file, and the
 password is read only when the route is added, as a `SecretStr`.
+
+Relative paths in a file are relative to that file, always; the default
+terminal types are the ones shipped with the package (`shipped`). The file
+is read bounded (a path naming /dev/zero fails, it does not eat memory) and
+parsed by the same YAML reader as terminal files (nesting limit, duplicate
+keys, line numbers). `ioc schema` prints `config_schema()`.
 """
 
 from __future__ import annotations
 
+import json
 import os
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, Final
 
-import yaml
 from pydantic import (
     BaseModel,
     ConfigDict,
@@ -27,14 +33,21 @@ from pydantic import (
 from fastcs_ethercat.ads.netid import AmsNetId
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.ioc.naming import check_alias, check_prefix
+from fastcs_ethercat.shipped import BUILTIN_TERMINALS_DIR
+from fastcs_ethercat.terminals.yaml_io import parse_yaml
+from fastcs_ethercat.textfile import read_text_bounded
 
 DEFAULT_ADS_TCP_PORT: Final = 48898
 DEFAULT_POLL_RATE_HZ: Final = 10.0
 MAX_POLL_RATE_HZ: Final = 1000.0
+MAX_CONFIG_BYTES: Final = 4 * 1024 * 1024
+MAX_PASSWORD_FILE_BYTES: Final = 64 * 1024
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(
+        extra="forbid", frozen=True, use_attribute_docstrings=True
+    )
 
 
 class RouteConfig(_Strict):
@@ -67,14 +80,12 @@ class RouteConfig(_Strict):
                 )
             return SecretStr(value)
         assert self.password_file is not None
-        try:
-            text = self.password_file.read_text(encoding="utf-8")
-        except OSError as error:
-            raise UserError(
-                f"cannot read the password file: {error.strerror}",
-                path=self.password_file,
-                where="route.password_file",
-            ) from None
+        text = read_text_bounded(
+            self.password_file,
+            MAX_PASSWORD_FILE_BYTES,
+            what="the password file",
+            where="route.password_file",
+        )
         lines = text.splitlines()
         return SecretStr(lines[0] if lines else "")
 
@@ -102,6 +113,7 @@ class IocConfig(_Strict):
     """Everything one IOC instance needs to know."""
 
     prefix: str
+    """PV prefix: every PV is <prefix>:<master>:<coupler>:<terminal>:<symbol>."""
     target: str
     """TwinCAT host (or the simulator), `host` or `host:port` (ADS TCP)."""
     ams_net_id: str | None = None
@@ -109,16 +121,27 @@ class IocConfig(_Strict):
     local_net_id: str | None = None
     """AMS NetId of this host; pyads derives one from the local IP when unset."""
     route: RouteConfig | None = None
+    """Add a route for this host on the target before connecting."""
     poll_rate_hz: float = Field(default=DEFAULT_POLL_RATE_HZ, gt=0, le=MAX_POLL_RATE_HZ)
+    """Sum-read rate of every master (Hz)."""
     ads_timeout_ms: int = Field(default=1000, ge=50, le=60_000)
     """Timeout of every ADS request of the IOC (a slow or distant PLC may need
     more; a request that times out fails its poll cycle or write)."""
     terminals: dict[str, TerminalConfig] = Field(default_factory=dict)
-    terminal_dirs: tuple[Path, ...] = (Path("terminals"),)
+    """Per-terminal settings by TwinCAT name or path (names joined with ^)."""
+    terminal_dirs: tuple[Path, ...] = Field(
+        default_factory=lambda: (BUILTIN_TERMINALS_DIR,)
+    )
+    """Directories, files or globs of terminal YAML, searched in this order;
+    relative to this file. Default: the terminal types shipped with
+    fastcs-ethercat (a list given here replaces them)."""
     pv_aliases: dict[str, str] = Field(default_factory=dict)
+    """Pin a PV segment: TwinCAT path (names joined with ^) -> PascalCase."""
     transports: TransportsConfig = TransportsConfig()
+    """Which EPICS protocols to serve."""
     screens_dir: Path | None = None
-    """Where to write Phoebus .bob screens; none when unset."""
+    """Where to write Phoebus .bob screens (relative to this file; in the
+    image /epics/opi); none when unset."""
     read_only: bool = False
     """Serve outputs (RxPDO symbols, CoE objects) read-only."""
     access_security_file: Path | None = None
@@ -211,18 +234,24 @@ def load_ioc_config(
         raise UserError(message, path=path, where=where) from None
 
 
+def config_schema() -> dict[str, Any]:
+    """The JSON schema of an IOC configuration file (for editors and CI)."""
+    schema = IocConfig.model_json_schema()
+    return {
+        "$schema": "https://json-schema.org/draft/2020-12/schema",
+        "title": "fastcs-ethercat IOC configuration",
+        **{key: value for key, value in schema.items() if key != "title"},
+    }
+
+
+def config_schema_text() -> str:
+    """`config_schema()` as the text `ioc schema` prints and the repo keeps."""
+    return json.dumps(config_schema(), indent=2) + "\n"
+
+
 def _read_yaml(path: Path) -> dict[str, Any]:
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as error:
-        raise UserError(f"cannot read: {error.strerror}", path=path) from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as error:
-        mark = getattr(error, "problem_mark", None)
-        where = f"line {mark.line + 1}" if mark is not None else None
-        problem = getattr(error, "problem", None) or "not valid YAML"
-        raise UserError(f"not valid YAML: {problem}", path=path, where=where) from None
+    text = read_text_bounded(path, MAX_CONFIG_BYTES)
+    data = parse_yaml(text, path).data
     if data is None:
         return {}
     if not isinstance(data, dict):

@@ -14,6 +14,7 @@ the others (a terminal's state, a chain change) only by `mark_ok`.
 
 from __future__ import annotations
 
+import asyncio
 import logging
 from collections.abc import Iterable
 from dataclasses import dataclass
@@ -104,10 +105,13 @@ class Health:
         await self.publisher.publish(attribute, value, stamp)
 
     def write_failed(self, attribute: Attribute[Any, Any], message: str) -> None:
-        """A write the target refused: alarm now; the next value clears it."""
+        """A write the target refused: alarm once FastCS has failed the put
+        (it raises the record to MAJOR itself, which would hide INVALID);
+        the next value clears it."""
         if self.is_invalid(attribute):
             return
-        self._publish(attribute, Reason(Status.WRITE, message))
+        reason = Reason(Status.WRITE, message)
+        asyncio.get_running_loop().call_soon(self._publish, attribute, reason)
 
     async def _drop(self, attribute: Attribute[Any, Any], gone: Iterable[str]) -> None:
         key = id(attribute)

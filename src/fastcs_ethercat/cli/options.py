@@ -1,0 +1,42 @@
+"""What every command shares: `--log-level`, and plain help.
+
+Help is Click's plain format (`rich_markup_mode=None`): Typer's rich panels
+print a type such as `<bool>` after every flag, which reads as if the flag
+took a value.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Final
+
+import typer
+
+from fastcs_ethercat.logs import LogLevel, setup_logging
+
+LogLevelOption = Annotated[
+    LogLevel | None,
+    typer.Option(
+        "--log-level",
+        case_sensitive=False,
+        metavar="[debug|info|warning|error|critical]",
+        help="Log level of this command's log lines (stderr). Default: info.",
+    ),
+]
+DEFAULT_LOG_LEVEL: Final = LogLevel.INFO
+
+
+def apply_log_level(level: LogLevel | None) -> None:
+    """Set up logging at `level` (the root's `--log-level` stays if None)."""
+    if level is not None:
+        setup_logging(level)
+
+
+def plain_typer(help_text: str, **settings: Any) -> typer.Typer:
+    """A Typer app with plain help and no completion or rich tracebacks."""
+    return typer.Typer(
+        help=help_text,
+        rich_markup_mode=None,
+        pretty_exceptions_enable=False,
+        add_completion=False,
+        **settings,
+    )
