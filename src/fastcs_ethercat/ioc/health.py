@@ -24,7 +24,7 @@ from fastcs.attributes import Attribute, AttrR
 
 from fastcs_ethercat.ioc import alarms
 from fastcs_ethercat.ioc.alarms import Severity, Status
-from fastcs_ethercat.ioc.publish import Publisher
+from fastcs_ethercat.ioc.publish import Failure, Published, Publisher
 
 logger = logging.getLogger(__name__)
 
@@ -103,6 +103,24 @@ class Health:
             await self._drop(attribute, FRESH)
             return
         await self.publisher.publish(attribute, value, stamp)
+
+    async def post_batch(
+        self, values: list[tuple[AttrR[Any, Any], Any]], stamp: float
+    ) -> Published:
+        """Fresh values of one poll cycle read at `stamp`: `post` for each,
+        the ones not in alarm published together."""
+        reasons = self._reasons
+        failures: list[Failure] = []
+        if reasons:
+            held = [(a, v) for a, v in values if id(a) in reasons]
+            values = [(a, v) for a, v in values if id(a) not in reasons]
+            for attribute, value in held:
+                try:
+                    await self.post(attribute, value, stamp)
+                except Exception as error:  # one value must not stop the others
+                    failures.append((attribute, error))
+        published = await self.publisher.publish_batch(values, stamp)
+        return published._replace(failures=failures + published.failures)
 
     def write_failed(self, attribute: Attribute[Any, Any], message: str) -> None:
         """A write the target refused: alarm once FastCS has failed the put

@@ -1,9 +1,11 @@
 """Post polled values to their PVs, every value of one poll cycle at one time.
 
 A poll cycle's values were all read by one ADS request, so they all carry
-that request's time, and only values that changed are posted. The posting
-itself (`Update(value, timestamp)` straight to the CA record and the PVA PV)
-is `fastcs_adapter`'s until FastCS releases its own `Update`.
+that request's time, and only values that changed are posted. A cycle's
+values are posted together (`publish_batch`): their CA records are written
+under one lock and none of them waits on another thread. The posting itself
+(`Update(value, timestamp)` straight to the CA record and the PVA PV) is
+`fastcs_adapter`'s until FastCS releases its own `Update`.
 
 Alarms are not sticky here either: a published value carries NO_ALARM (see
 `ioc.alarms`, `ioc.health`).
@@ -11,12 +13,45 @@ Alarms are not sticky here either: a published value carries NO_ALARM (see
 
 from __future__ import annotations
 
+import gc
 import time
-from typing import Any
+from collections.abc import Awaitable, Iterable
+from typing import Any, Final, NamedTuple
 
 from fastcs.attributes import AttrR
 
-from fastcs_ethercat.ioc.fastcs_adapter import Update, ValueRoute
+from fastcs_ethercat.ioc.fastcs_adapter import CycleWrites, Update, ValueRoute
+
+GC_THRESHOLD: Final = 50_000
+"""Tracked objects allocated (net) before a young collection; CPython's 700
+makes a rack that posts 100 000 values a second collect 150 times a second."""
+FREEZE_AFTER_ROUTES: Final = 100
+"""A batch that made this many routes (a first cycle) freezes the heap again."""
+
+Failure = tuple[AttrR[Any, Any], Exception]
+"""An attribute whose value could not be posted, and why."""
+
+
+class Published(NamedTuple):
+    """What one batch did: values posted, and the ones that failed."""
+
+    posted: int
+    failures: list[Failure]
+
+
+def settle_garbage_collector() -> None:
+    """Keep the collector off the publish path (called once the IOC serves).
+
+    Everything built so far (the tree, its records and PVs, hundreds of
+    thousands of objects) lives as long as the IOC: it is moved out of the
+    collector's sight (`gc.freeze`), else every full collection walks it all;
+    and a young collection waits for `GC_THRESHOLD` objects, by when a poll
+    cycle's short-lived tuples are gone. Both took half the CPU of a rack
+    whose every value changes.
+    """
+    gc.freeze()
+    _, *older = gc.get_threshold()
+    gc.set_threshold(GC_THRESHOLD, *older)
 
 
 class Publisher:
@@ -33,23 +68,77 @@ class Publisher:
         self._routes: dict[int, ValueRoute] = {}
 
     def start(self) -> None:
+        """The transports serve: post straight to their PVs from now on."""
         self.started = True
+        settle_garbage_collector()
 
     async def publish(
         self, attribute: AttrR[Any, Any], value: Any, stamp: float | None = None
     ) -> bool:
         """Post `value` (if new) at `stamp` (now if None); True if posted."""
-        datatype = attribute.datatype
-        validated = datatype.validate(value)
+        posted, failures = await self.publish_batch([(attribute, value)], stamp)
+        if failures:
+            raise failures[0][1]
+        return posted == 1
+
+    async def publish_batch(
+        self,
+        values: Iterable[tuple[AttrR[Any, Any], Any]],
+        stamp: float | None = None,
+    ) -> Published:
+        """Post each new value at `stamp` (now if None), all CA records of
+        the batch under one lock; a value that fails does not stop the
+        others."""
+        stamp = stamp or time.time()
         if not self.started:
-            if datatype.equal(attribute.get(), validated):
-                return False
-            await attribute.update(validated)
-            return True
-        route = self._routes.get(id(attribute))
-        if route is None:
-            route = self._routes[id(attribute)] = ValueRoute(attribute)
-        elif datatype.equal(attribute.get(), validated):
-            return False
-        await route.publish(Update(validated, stamp or time.time()))
-        return True
+            return await self._update_each(values)
+        writes = CycleWrites(stamp)
+        routes = self._routes
+        failures: list[Failure] = []
+        waiting: list[tuple[AttrR[Any, Any], Awaitable[None]]] = []
+        posted = made = 0
+        try:
+            for attribute, value in values:
+                try:
+                    datatype = attribute.datatype
+                    validated = datatype.validate(value)
+                    route = routes.get(id(attribute))
+                    if route is None:
+                        route = routes[id(attribute)] = ValueRoute(attribute)
+                        made += 1
+                    elif datatype.equal(attribute.get(), validated):
+                        continue
+                    pending = route.post(Update(validated, stamp), writes)
+                except Exception as error:
+                    failures.append((attribute, error))
+                    continue
+                posted += 1
+                if pending is not None:
+                    waiting.append((attribute, pending))
+        finally:
+            writes.flush()
+        if made >= FREEZE_AFTER_ROUTES:
+            gc.freeze()  # routes live as long as the IOC: see `start`
+        for attribute, pending in waiting:
+            try:
+                await pending
+            except Exception as error:
+                failures.append((attribute, error))
+        return Published(posted, failures)
+
+    async def _update_each(
+        self, values: Iterable[tuple[AttrR[Any, Any], Any]]
+    ) -> Published:
+        """Before the transports serve: FastCS's own `update()`."""
+        failures: list[Failure] = []
+        posted = 0
+        for attribute, value in values:
+            try:
+                validated = attribute.datatype.validate(value)
+                if attribute.datatype.equal(attribute.get(), validated):
+                    continue
+                await attribute.update(validated)
+                posted += 1
+            except Exception as error:
+                failures.append((attribute, error))
+        return Published(posted, failures)
