@@ -100,3 +100,46 @@ def test_field_checks_raise_the_library_errors_and_accept_repeats() -> None:
         " too long, max 25 characters",
         'AssertionError: Can\'t write "x" to field DRVH: Not a valid integer',
     ]
+
+
+def test_lean_imports_leave_shell_gui_and_setuptools_for_later() -> None:
+    """IPython, pvi and setuptools are not imported at start; what FastCS
+    took from them imports them when called, and they import as usual."""
+    out = _run(
+        """
+        import sys
+        from fastcs_ethercat.ioc.fastcs_adapter import import_ioc_modules
+        import_ioc_modules()
+        print(*(name in sys.modules for name in ("IPython", "pvi", "setuptools")))
+        from fastcs.transports.epics.ca import transport
+        from fastcs.controllers import Controller
+        controller = Controller()
+        controller.set_path(["LEAN"])
+        gui = transport.EpicsGUI(controller.create_api_and_tasks()[0])
+        print(type(gui).__module__, "pvi" in sys.modules)
+        import setuptools_dso
+        print(callable(setuptools_dso.setup), callable(setuptools_dso.find_dso))
+        """
+    )
+    assert out.splitlines() == [
+        "False False False",
+        "fastcs.transports.epics.gui True",
+        "True True",
+    ]
+
+
+def test_the_ioc_gives_up_realtime_scheduling_before_epics_starts() -> None:
+    """As root EPICS would run its threads SCHED_FIFO and lock all memory."""
+    out = _run(
+        """
+        from pathlib import Path
+        from fastcs_ethercat.ioc.fastcs_adapter import import_ioc_modules
+        from fastcs_ethercat.ioc.scheduling import CAP_SYS_NICE
+        import_ioc_modules()
+        status = dict(
+            line.split(":", 1) for line in Path("/proc/self/status").read_text().splitlines()
+        )
+        print(int(status["CapEff"], 16) >> CAP_SYS_NICE & 1, status["VmLck"].split()[0])
+        """
+    )
+    assert out.split() == ["0", "0"]

@@ -54,6 +54,7 @@ import functools
 import importlib
 import importlib.abc
 import importlib.metadata
+import importlib.util
 import sys
 import time
 import types
@@ -858,30 +859,86 @@ def _caller_package() -> str:
     return sys._getframe(2).f_globals["__name__"]  # pyright: ignore[reportPrivateUsage]
 
 
+_DEFERRED: Final = {
+    "IPython.terminal.embed": ("InteractiveShellEmbed",),
+    "fastcs.transports.epics.emission": ("emit_docs_files", "emit_gui_files"),
+    "fastcs.transports.epics.gui": ("EpicsGUI",),
+    "fastcs.transports.epics.pva.gui": ("PvaEpicsGUI",),
+}
+"""Modules FastCS imports at start only to define names an IOC without an
+interactive shell or GUI files never calls (IPython, pvi): stood in for by
+names that import the real module when first called."""
+_DSO_PACKAGE: Final = "setuptools_dso"
+_DSO_RUNTIME: Final = "setuptools_dso.runtime"
+_DSO_NAMES: Final = ("find_dso", "dylink_prepare_dso")
+"""The package EPICS's wheels find their libraries with: its `__init__`
+imports setuptools (and with it pkg_resources, which reads the metadata of
+every installed distribution) to offer build commands; at run time only
+these names of its `runtime` are used."""
+
+
+def _deferred(module: str, name: str) -> Callable[..., Any]:
+    def call(*args: Any, **kwargs: Any) -> Any:
+        return getattr(importlib.import_module(module), name)(*args, **kwargs)
+
+    call.__name__ = call.__qualname__ = name
+    return call
+
+
+def _stand_ins() -> dict[str, types.ModuleType]:
+    """Stand-in modules for what is not imported yet (see `_DEFERRED`)."""
+    found: dict[str, types.ModuleType] = {}
+    for name, names in _DEFERRED.items():
+        if name not in sys.modules and importlib.util.find_spec(name.split(".")[0]):
+            module = found[name] = types.ModuleType(name, "stands in at start")
+            for attribute in names:
+                module.__dict__[attribute] = _deferred(name, attribute)
+    if _DSO_PACKAGE not in sys.modules:
+        spec = importlib.util.find_spec(_DSO_PACKAGE)
+        if spec is not None and spec.submodule_search_locations:
+            package = found[_DSO_PACKAGE] = types.ModuleType(_DSO_PACKAGE)
+            package.__path__ = list(spec.submodule_search_locations)
+    return found
+
+
 @contextmanager
 def lean_imports() -> Iterator[None]:
-    """Within: unused FastCS transports are not imported, DSOs found quickly."""
+    """Within: unused FastCS transports are not imported, DSOs found quickly
+    and without setuptools, `_DEFERRED` modules stood in for."""
+    stood_in = _stand_ins()
+    sys.modules.update(stood_in)
     finder = _RefuseUnused()
     sys.meta_path.insert(0, finder)
     try:
-        runtime: Any = importlib.import_module("setuptools_dso.runtime")
+        runtime: Any = importlib.import_module(_DSO_RUNTIME)
     except ImportError:
         runtime = None
+    package = stood_in.get(_DSO_PACKAGE)
+    if package is not None and runtime is not None:
+        for name in _DSO_NAMES:
+            package.__dict__[name] = getattr(runtime, name)
     auto_pkg = getattr(runtime, "_auto_pkg", None)
-    if auto_pkg is not None:
+    if runtime is not None and auto_pkg is not None:
         runtime._auto_pkg = _caller_package
     try:
         yield
     finally:
         sys.meta_path.remove(finder)
-        if auto_pkg is not None:
+        if runtime is not None and auto_pkg is not None:
             runtime._auto_pkg = auto_pkg
+        for name, module in stood_in.items():
+            if sys.modules.get(name) is module:
+                del sys.modules[name]
 
 
 def import_ioc_modules() -> None:
-    """Import FastCS with its CA and PVA transports the quick way (once);
-    the PVA read PVs it makes are posted to lazily (`_ReadPv`)."""
+    """Import FastCS with its CA and PVA transports the quick way (once),
+    EPICS without real-time threads (`scheduling`); the PVA read PVs FastCS
+    makes are posted to lazily (`_ReadPv`)."""
     if not all(name in sys.modules for name in IOC_MODULES):
+        from fastcs_ethercat.ioc.scheduling import give_up_realtime_scheduling
+
+        give_up_realtime_scheduling()  # before EPICS starts a thread
         with lean_imports():
             for name in IOC_MODULES:
                 importlib.import_module(name)
