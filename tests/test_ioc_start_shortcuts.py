@@ -136,9 +136,8 @@ def test_the_ioc_gives_up_realtime_scheduling_before_epics_starts() -> None:
         from fastcs_ethercat.ioc.fastcs_adapter import import_ioc_modules
         from fastcs_ethercat.ioc.scheduling import CAP_SYS_NICE
         import_ioc_modules()
-        status = dict(
-            line.split(":", 1) for line in Path("/proc/self/status").read_text().splitlines()
-        )
+        text = Path("/proc/self/status").read_text()
+        status = dict(line.split(":", 1) for line in text.splitlines())
         print(int(status["CapEff"], 16) >> CAP_SYS_NICE & 1, status["VmLck"].split()[0])
         """
     )
