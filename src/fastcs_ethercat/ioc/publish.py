@@ -20,6 +20,7 @@ from typing import Any, Final, NamedTuple
 
 from fastcs.attributes import AttrR
 
+from fastcs_ethercat.ioc.deadband import Deadbands
 from fastcs_ethercat.ioc.fastcs_adapter import CycleWrites, Update, ValueRoute
 
 GC_THRESHOLD: Final = 50_000
@@ -60,12 +61,19 @@ class Publisher:
     Until `start()` (the transports' PVs exist only from when they serve),
     values go through `update()`. The first value published for an attribute
     is posted even when it equals the attribute's value, so its records start
-    on device time with a real timestamp.
+    on device time with a real timestamp. A number with a deadband
+    (`ioc.deadband`) is posted only when it moved further than that from the
+    value posted last, which its attribute keeps.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, deadbands: Deadbands | None = None) -> None:
         self.started = False
-        self._routes: dict[int, ValueRoute] = {}
+        self.deadbands = deadbands or Deadbands()
+        self.posted = 0
+        """Values posted since start (a running total, for rates)."""
+        self.within_deadband = 0
+        """New values not posted: within their deadband of the last posted."""
+        self._routes: dict[int, tuple[ValueRoute, float]] = {}
 
     def start(self) -> None:
         """The transports serve: post straight to their PVs from now on."""
@@ -102,12 +110,20 @@ class Publisher:
                 try:
                     datatype = attribute.datatype
                     validated = datatype.validate(value)
-                    route = routes.get(id(attribute))
-                    if route is None:
-                        route = routes[id(attribute)] = ValueRoute(attribute)
+                    entry = routes.get(id(attribute))
+                    if entry is None:
+                        band = self.deadbands.of_attribute(attribute)
+                        route = ValueRoute(attribute)
+                        routes[id(attribute)] = (route, band)
                         made += 1
-                    elif datatype.equal(attribute.get(), validated):
-                        continue
+                    else:
+                        route, band = entry
+                        if band:
+                            if abs(validated - attribute.get()) <= band:
+                                self.within_deadband += 1
+                                continue
+                        elif datatype.equal(attribute.get(), validated):
+                            continue
                     pending = route.post(Update(validated, stamp), writes)
                 except Exception as error:
                     failures.append((attribute, error))
@@ -119,6 +135,7 @@ class Publisher:
             writes.flush()
         if made >= FREEZE_AFTER_ROUTES:
             gc.freeze()  # routes live as long as the IOC: see `start`
+        self.posted += posted
         for attribute, pending in waiting:
             try:
                 await pending
