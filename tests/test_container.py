@@ -33,7 +33,7 @@ IMAGE = "localhost/fastcs-ethercat:test"
 PODMAN = str(REPO_ROOT / "deploy" / "podman.sh")
 BUILD_TIMEOUT_S = 1500
 DEMO_CHAIN = REPO_ROOT / "ioc" / "demo-chain.yaml"
-PV = "ETH1:RIO1:MOD5:AICompactCh1"
+PV = "ETH1:RIO1:MOD5:CH1:Value"
 STOP_LIMIT_S = 2.0
 
 _MISSING = [

@@ -74,7 +74,7 @@ def test_the_preview_names_the_pvs_as_the_ioc_does() -> None:
     }
     enable = counter["Enable output functions"]
     assert enable.pv.endswith(":MOD112:EnblOtptFnctns") and enable.longest <= 60
-    assert enable.shortened == "vowels dropped to fit 14 characters"
+    assert enable.shortened == "vowels dropped to fit 15 characters"
     with pytest.raises(UserError, match="type a terminal's PV prefix"):
         preview_pvs(el3104, "EL3104", "BL45P-MO-IOC-01")
 

@@ -236,7 +236,7 @@ def test_read_only_serves_outputs_and_coe_read_only() -> None:
     root = _root(Recorder(), read_only=True)
     entries = {e.name: e for e in root.pvs()}
 
-    assert entries["TEST:ETH1:RIO1:MOD2:AOOutput"].access == "r"
+    assert entries["TEST:ETH1:RIO1:MOD2:AOOutput"].access == "r"  # no channel
     assert entries["TEST:ETH1:RIO1:MOD2:C8000:Presentation"].access == "r"
 
 

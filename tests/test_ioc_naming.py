@@ -108,29 +108,27 @@ def test_standard_and_compact_pdos_give_the_same_value_names() -> None:
     assert values(standard) == values(compact) == {f"CH{n}:Value" for n in (1, 2, 3, 4)}
 
 
-@pytest.mark.parametrize(
-    "path",
-    [
-        (MASTER, Node(NodeKind.COUPLER, "Term 100 (EK1100)"), EL3104),
-        (MASTER, COUPLER, Node(NodeKind.TERMINAL, "Term 105 (EL3104)")),
-        (MASTER, Node(NodeKind.COUPLER, "Term 700 (EK1100)"), EL3104),
-        (MASTER, Node(NodeKind.TERMINAL, "Term 999 (EL3104)")),
-        (Node(NodeKind.MASTER, "Device 3 (EtherCAT)"), EL3104),
-    ],
-)
-def test_a_terminal_type_gets_the_same_suffixes_wherever_it_sits(
-    path: tuple[Node, ...],
-) -> None:
-    """The room of a value comes from fixed budgets, not from where the
-    terminal sits: the longest names, at the limit of their room at `MOD5`,
-    are cut the same way at `MOD999` and behind no coupler."""
+PLACES = [
+    PATH,
+    (MASTER, Node(NodeKind.COUPLER, "Term 100 (EK1100)"), EL3104),
+    (MASTER, COUPLER, Node(NodeKind.TERMINAL, "Term 105 (EL3104)")),
+    (MASTER, Node(NodeKind.COUPLER, "Term 700 (EK1100)"), EL3104),
+    (MASTER, Node(NodeKind.TERMINAL, "Term 999 (EL3104)")),
+    (Node(NodeKind.MASTER, "Device 3 (EtherCAT)"), EL3104),
+]
+
+
+def test_a_terminal_type_gets_the_same_suffixes_wherever_it_sits() -> None:
+    """The room of a value comes from the budgets of its levels, one for the
+    whole IOC, not from where the terminal sits: the longest names, at the
+    limit of their room, are cut the same way at `MOD5`, at `MOD999` and
+    behind no coupler."""
     long_entries = [
         "Status.Output functions enabled",
         "Control.Enable output functions",
     ]
-
-    def suffixes(path: tuple[Node, ...]) -> list[str]:
-        requests = [
+    requests = {
+        path: [
             symbol_request(
                 path,
                 f"{path[-1].name}.CNT Channel 1.{entry}",
@@ -140,13 +138,18 @@ def test_a_terminal_type_gets_the_same_suffixes_wherever_it_sits(
             )
             for entry in long_entries
         ]
-        names = plan_pv_names(PREFIX, [*requests, *_analog(path)])
-        terminal = len(path)
-        return sorted(":".join(names.below(r, terminal)) for r in names.leaves)
+        + _analog(path)
+        for path in PLACES
+    }
 
-    reference = suffixes(PATH)
-    assert "CH1:EnblOtptFnctns" in reference  # at the limit, so a real check
-    assert suffixes(path) == reference
+    names = plan_pv_names(PREFIX, [r for each in requests.values() for r in each])
+
+    def suffixes(path: tuple[Node, ...]) -> list[str]:
+        return sorted(":".join(names.below(r, len(path))) for r in requests[path])
+
+    assert "CH1:EnblOutputFnctns" in suffixes(PATH)  # at its limit: a real check
+    assert all(suffixes(path) == suffixes(PATH) for path in PLACES)
+    assert all(_pv_length(names, r) <= MAX_PV_LENGTH for r in names.leaves)
 
 
 @pytest.mark.parametrize(
@@ -240,7 +243,7 @@ def test_long_names_are_shortened_and_reported() -> None:
     assert len(reported[terminal_key].segment) <= 16
     assert all(str(s).startswith(s.source) for s in names.shortened)
     value = names.leaves[requests[2]]
-    assert value == "LimitOneExcddUpwrds"  # 19: vowels dropped, no hash
+    assert value == "LimitOneExcddUpwards"  # 20: vowels dropped, no hash
     assert not reported[
         alias_key([*(n.name for n in PATH), requests[2].leaf[16:]])
     ].hashed
@@ -257,9 +260,9 @@ def test_words_are_cut_before_a_hash_is_given() -> None:
     [shortening] = names.shortened
     assert (shortening.default, shortening.segment) == (
         "EnableAutomaticCalibration",
-        "EnbAtmClbr",
+        "EnblAtmtClbrt",
     )
-    assert shortening.reason == "words cut short to fit 10 characters"
+    assert shortening.reason == "words cut short to fit 13 characters"
     assert not shortening.hashed
 
 
@@ -317,7 +320,7 @@ SIX = Node(NodeKind.TERMINAL, "Term 6 (EL2024)")
         ({MASTER.name: "Pvi"}, "FastCS's own PVI"),
         ({MASTER.name: "eth_1"}, "must be PascalCase"),
         ({MASTER.name: "A" * 40}, "at most"),
-        ({f"{TERMINAL_KEY}^Dial": "A" * 30}, r"at most 24 fit"),
+        ({f"{TERMINAL_KEY}^Dial": "A" * 30}, r"at most 26 fit"),
     ],
 )
 def test_an_alias_equal_to_another_name_stops_with_one_line_naming_both(
@@ -366,16 +369,16 @@ def test_the_longest_prefix_still_fits_every_value() -> None:
 
 def test_a_level_over_its_budget_takes_room_from_below() -> None:
     path = (Node(NodeKind.MASTER, "Device 10 (EtherCAT)"), COUPLER, EL3104)
-    entry = "Status.Output functions on"  # 17 characters: fits its room of 19
+    entry = "Status.Output functions on"  # 17 characters: fits its room of 21
     request = symbol_request(path, f"{EL3104.name}.C Channel 1.{entry}",
                              entry_name=entry, channel=1)  # fmt: skip
-    pinned = {alias_key([path[0].name]): "EtherCatA"}  # 5 over its budget
+    pinned = {alias_key([path[0].name]): "EthercatMain"}  # 7 over its budget
 
     plain = plan_pv_names(PREFIX, [request])
     names = plan_pv_names(PREFIX, [request], pinned)
 
     assert plain.pv(request) == f"{PREFIX}:ETH10:RIO1:MOD5:CH1:OutputFunctionsOn"
-    assert names.pv(request) == f"{PREFIX}:EtherCatA:RIO1:MOD5:CH1:OutputFnctnsOn"
+    assert names.pv(request) == f"{PREFIX}:EthercatMain:RIO1:MOD5:CH1:OutputFnctnsOn"
     assert _pv_length(names, request) <= MAX_PV_LENGTH
 
 

@@ -1,9 +1,11 @@
 """The PV names a terminal's selected symbols and CoE objects will get.
 
 Named by the IOC's own planner (`ioc.naming.plan_pv_names`), so the preview
-shortens exactly as the IOC will. The engineer types the PV prefix of one
-terminal of the type (`BL45P-MO-IOC-01:ETH1:RIO1:MOD5`); the three trailing
-segments say which master, coupler and terminal position to name.
+shortens as the IOC will. The engineer types the PV prefix of one terminal
+of the type (`BL45P-MO-IOC-01:ETH1:RIO1:MOD5`); the three trailing segments
+say which master, coupler and terminal position to name. The IOC budgets
+each level by the longest of its whole chain: type a terminal number of as
+many digits as the chain's longest (`MOD105` on a rack of over 99).
 """
 
 from __future__ import annotations

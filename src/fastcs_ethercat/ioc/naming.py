@@ -25,17 +25,21 @@ Segments (TwinCAT name -> segment):
   `N` in front. Where two values of one controller would get the same name,
   both take their next longer name (`StatusError`, then the whole symbol).
 
-Length, by construction: every level has a fixed budget (`NOMINAL`: `ETH`
-and `CH` 4 characters, `RIO` and `MOD` 6, `C8000` 5), and a value's room is
-what the prefix and the budgets of the levels above it leave, `_RBV` kept for
-writable ones. It does not depend on where the terminal sits (`MOD5` or
-`MOD105`, behind a coupler or not), so a terminal type gets the same suffixes
-everywhere. Only a name over its room is shortened: first the inner
-lower-case vowels of its longest words go (`Underrange` -> `Undrrng`), then
-it is cut and marked with `X` and a hash of its TwinCAT name; the last
-resorts, both returned in `PvNames.shortened`, nothing silent. A level
-longer than its budget (an alias, `ETH10`, `MOD1000`) takes its room from
-the levels below it.
+Length, by construction: every level has one budget for the whole IOC, the
+longest standard segment of that level in it (`ETH<n>`, `RIO<n>`, `MOD<n>`,
+`CH<n>`; at least `MIN_BUDGET`: 4, 5, 5 and 3 characters; `C<index>` 5), and
+a value's room is what the prefix and the budgets of all the levels above it
+leave, present or not, `_RBV` kept for writable ones. It does not depend on
+where the terminal sits (`MOD5` or `MOD105`, behind a coupler or not), so a
+terminal type gets the same suffixes everywhere in the IOC; a chain that
+grows past `Term 99` gives every value one character less room (a name at
+its limit then changes, and says so). A level longer than its budget (an
+alias, a terminal TwinCAT calls by a name of its own) takes its room from
+the values below it only. Only a name over its room is shortened: first the
+inner lower-case vowels of its longest words go (`Underrange` ->
+`Undrrng`), then its words are cut short, and last it is cut and marked with
+`X` and a hash of its TwinCAT name; each is returned in `PvNames.shortened`,
+nothing silent.
 
 Aliases pin a segment: the key is the TwinCAT path of a master, coupler,
 terminal or value, its names joined with `^`
@@ -92,14 +96,18 @@ class NodeKind(StrEnum):
 
 TWINCAT_KINDS: Final = frozenset({NodeKind.MASTER, NodeKind.COUPLER, NodeKind.TERMINAL})
 """Levels that are TwinCAT objects: their names make the alias keys."""
-NOMINAL: Final = {
+MIN_BUDGET: Final = {
     NodeKind.MASTER: 4,  # ETH1 .. ETH9
-    NodeKind.COUPLER: 6,  # RIO1 .. RIO999
-    NodeKind.TERMINAL: 6,  # MOD1 .. MOD999
-    NodeKind.CHANNEL: 4,  # CH1 .. CH99
+    NodeKind.COUPLER: 5,  # RIO1 .. RIO99
+    NodeKind.TERMINAL: 5,  # MOD1 .. MOD99
+    NodeKind.CHANNEL: 3,  # CH1 .. CH9
     NodeKind.COE_OBJECT: 5,  # C0000 .. CFFFF
 }
-"""Characters each level is budgeted, whatever its actual segment."""
+"""The least each level is budgeted; a longer standard segment anywhere in
+the IOC (`MOD105`, `CH16`) raises its level's budget for every node."""
+_PREFIX_BUDGET: Final = {**MIN_BUDGET, NodeKind.COUPLER: 6, NodeKind.TERMINAL: 6}
+"""The budgets `MAX_PREFIX_LENGTH` leaves room for: racks of up to 999 terminals."""
+_STANDARD_SEGMENT = re.compile(r"^(ETH|RIO|MOD|CH)\d+$|^C[0-9A-F]{4}$")
 _LEVELS: Final = {
     NodeKind.MASTER: (NodeKind.MASTER,),
     NodeKind.COUPLER: (NodeKind.MASTER, NodeKind.COUPLER),
@@ -122,12 +130,16 @@ full depth, so a terminal without a coupler names its values as one behind
 a coupler does."""
 
 
-def _budget(kind: NodeKind) -> int:
-    return sum(1 + NOMINAL[level] for level in _LEVELS[kind])
+Budgets = Mapping[NodeKind, int]
+
+
+def _path_budget(kind: NodeKind, budgets: Budgets) -> int:
+    """Characters the levels down to a node of `kind` are budgeted, colons too."""
+    return sum(1 + budgets[level] for level in _LEVELS[kind])
 
 
 MAX_PREFIX_LENGTH: Final = (
-    MAX_BASE_LENGTH - _budget(NodeKind.COE_OBJECT) - (1 + MIN_LEAF)
+    MAX_BASE_LENGTH - _path_budget(NodeKind.COE_OBJECT, _PREFIX_BUDGET) - (1 + MIN_LEAF)
 )
 """The longest prefix that leaves `MIN_LEAF` for every value."""
 
@@ -349,10 +361,11 @@ def plan_pv_names(
         for depth in range(len(request.path)):
             children[request.path[:depth]].add(request.path[depth])
         children[request.path].add(request)
+    budgets = _budgets(path[-1] for path in children if path)
 
     def name_children(parent: tuple[Node, ...], segments: tuple[str, ...]) -> None:
         wanted = [
-            _wanted(prefix, parent, segments, child, aliases)
+            _wanted(prefix, parent, segments, child, aliases, budgets)
             for child in sorted(children[parent], key=_child_sort_key)
         ]
         used.update(item.key for item in wanted if item.pinned is not None)
@@ -421,6 +434,7 @@ def _wanted(
     segments: tuple[str, ...],
     child: Node | PvRequest,
     aliases: Mapping[str, str],
+    budgets: Budgets,
 ) -> _Wanted:
     """What one child of `parent` wants to be called, and its room."""
     twincat = [node.name for node in parent if node.kind in TWINCAT_KINDS]
@@ -430,14 +444,14 @@ def _wanted(
             key = alias_key([*twincat, segment])
             return _Wanted(child, key, (segment,), None, True, len(segment), "")
         key = alias_key([*twincat, child.name])
-        cap = _controller_cap(child.kind, ":".join((prefix, *segments)))
+        cap = _controller_cap(child.kind, ":".join((prefix, *segments)), budgets)
         source = f"{child.kind}:{child.name}"
         names: tuple[str, ...] = (segment,)
         writable = False
     else:
         relative = _symbol_name(parent, child.leaf)
         key = alias_key([*twincat, relative])
-        cap = _leaf_cap(prefix, parent, segments, child.writable)
+        cap = _leaf_cap(prefix, parent, segments, child.writable, budgets)
         source = f"leaf:{child.leaf}"
         names = tuple(dict.fromkeys(default_segment(n) for n in child.names or ()))
         names = tuple(n for n in names if n) or (default_segment(relative),)
@@ -476,8 +490,22 @@ def _without_channel(name: str, channel: int | None) -> str:
     return re.sub(rf"(?i)\b(?:channel|chn?)\s*\.?\s*{channel}\b", " ", name)
 
 
+def _budgets(nodes: Iterable[Node]) -> dict[NodeKind, int]:
+    """Each level's budget: its longest standard segment, at least `MIN_BUDGET`."""
+    budgets = dict(MIN_BUDGET)
+    for node in nodes:
+        segment = default_segment(node.name, node.kind)
+        if _STANDARD_SEGMENT.match(segment):
+            budgets[node.kind] = max(budgets[node.kind], len(segment))
+    return budgets
+
+
 def _leaf_cap(
-    prefix: str, parent: tuple[Node, ...], segments: tuple[str, ...], rbv: bool
+    prefix: str,
+    parent: tuple[Node, ...],
+    segments: tuple[str, ...],
+    rbv: bool,
+    budgets: Budgets,
 ) -> int:
     """Longest name a value under `parent` may take: what the prefix and the
     budgets of the levels down to it leave (all of them, present or not; a
@@ -487,15 +515,15 @@ def _leaf_cap(
         node.kind: len(segment) for node, segment in zip(parent, segments, strict=True)
     }
     levels = _LEVELS[parent[-1].kind] if parent else ()
-    used = sum(1 + max(NOMINAL[level], actual.get(level, 0)) for level in levels)
+    used = sum(1 + max(budgets[level], actual.get(level, 0)) for level in levels)
     room = MAX_PV_LENGTH - len(prefix) - used - 1
     return room - (len(RBV_SUFFIX) if rbv else 0)
 
 
-def _controller_cap(kind: NodeKind, parent_pv: str) -> int:
+def _controller_cap(kind: NodeKind, parent_pv: str, budgets: Budgets) -> int:
     """Longest segment a master, coupler or terminal may take: the budgets of
     the levels below it and `MIN_LEAF` (+ `_RBV`) stay free."""
-    below = _budget(NodeKind.COE_OBJECT) - _budget(kind)
+    below = _path_budget(NodeKind.COE_OBJECT, budgets) - _path_budget(kind, budgets)
     room = MAX_BASE_LENGTH - len(parent_pv) - 1 - below - (1 + MIN_LEAF)
     return min(room, MAX_CONTROLLER_SEGMENT)
 
