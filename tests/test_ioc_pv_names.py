@@ -15,6 +15,7 @@ from pathlib import Path
 
 import pytest
 
+from fastcs_ethercat.bench.chains import terminals_with_coe
 from fastcs_ethercat.ioc.naming import MAX_PV_LENGTH, RBV_SUFFIX
 from fastcs_ethercat.sim.process import SimProcess
 from tests.conftest import REPO_ROOT, TERMINALS_DIR
@@ -90,3 +91,48 @@ def test_list_pvs_under_a_beamline_prefix_needs_no_hash(chain: str) -> None:
         by_terminal = _suffixes_by_terminal(names)
         values = {f"CH{n}:Value" for n in range(1, 5)}
         assert values <= by_terminal["MOD5"] and values <= by_terminal["MOD22"]
+
+
+@pytest.mark.e2e
+@pytest.mark.parametrize(
+    ("key", "alias", "other"),
+    [
+        ("Term 1 (EK1100)^Term 5 (EL3104)", "MOD6", "Term 6 (EL2024)' (MOD6)"),
+        (
+            "Term 21 (EK1122)^Term 22 (EL3104)^AI Standard Channel 1.Value",
+            "Error",
+            "AI Standard Channel 1.Status.Error' (Error)",
+        ),
+        (
+            "Term 1 (EK1100)^Term 5 (EL3104)^Coe ai_settings_8000_enable_filter",
+            "Presentation",
+            "Coe ai_settings_8000_presentation' (Presentation)",
+        ),
+    ],
+)
+def test_an_alias_equal_to_a_generated_name_stops_the_ioc_in_one_line(
+    tmp_path: Path, key: str, alias: str, other: str
+) -> None:
+    """Issue 11 item 7: before, the other PV was renamed with a hash, exit 0."""
+    config = tmp_path / "ioc.yaml"
+    path = f"Device 1 (EtherCAT)^{key}"
+    config.write_text(
+        f"prefix: {BEAMLINE_PREFIX}\ntarget: 127.0.0.1\n"
+        f"pv_aliases:\n  '{path}': {alias}\n"
+        + ("terminal_dirs: [terminals]\n" if "Coe" in key else "")
+    )
+    if "Coe" in key:
+        terminals_with_coe(TERMINALS_DIR, tmp_path / "terminals")
+    with SimProcess(
+        REPO_ROOT / "ioc" / "demo-chain.yaml", terminals=TERMINALS_DIR
+    ) as sim:
+        done = subprocess.run(
+            [sys.executable, "-m", "fastcs_ethercat", "ioc", "--config", str(config),
+             "--target", f"{sim.host}:{sim.tcp_port}", "--ams-net-id", sim.net_id],
+            env=ioc_env(new_token()), capture_output=True, text=True, timeout=120,
+        )  # fmt: skip
+
+    last = done.stderr.strip().splitlines()[-1]
+    assert done.returncode == 2, done.stderr[-2000:]
+    assert last.startswith(f"error: pv_aliases['{path}']: alias '{alias}' is also")
+    assert other in last and "ready" not in done.stdout
