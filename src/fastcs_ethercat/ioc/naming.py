@@ -208,7 +208,7 @@ class Shortening:
     segment: str
     reason: str
     hashed: bool = False
-    """Cut and marked with a hash (or a number), not only vowels dropped."""
+    """Cut and marked with a hash (or a number), not only made shorter."""
     node: tuple[Node, ...] | PvRequest | None = None
     """The controller's path, or the attribute's request."""
 
