@@ -75,35 +75,26 @@ def label(
 
 
 def text_update(box: Box, pv: str) -> ElementTree.Element:
-    widget = _widget("textupdate", box, pv)
-    _add(widget, "pv_name", pv)
-    return widget
+    return _pv_widget("textupdate", box, pv)
 
 
 def text_entry(box: Box, pv: str) -> ElementTree.Element:
-    widget = _widget("textentry", box, pv)
-    _add(widget, "pv_name", pv)
-    return widget
+    return _pv_widget("textentry", box, pv)
 
 
 def combo(box: Box, pv: str) -> ElementTree.Element:
     """A choice of the PV's own states (Phoebus reads them from the PV)."""
-    widget = _widget("combo", box, pv)
-    _add(widget, "pv_name", pv)
-    return widget
+    return _pv_widget("combo", box, pv)
 
 
 def checkbox(box: Box, pv: str) -> ElementTree.Element:
-    widget = _widget("checkbox", box, pv)
-    _add(widget, "pv_name", pv)
+    widget = _pv_widget("checkbox", box, pv)
     _add(widget, "label", "")
     return widget
 
 
 def led(box: Box, pv: str) -> ElementTree.Element:
-    widget = _widget("led", box, pv)
-    _add(widget, "pv_name", pv)
-    return widget
+    return _pv_widget("led", box, pv)
 
 
 def severity_led(box: Box, pv: str) -> ElementTree.Element:
@@ -184,6 +175,12 @@ def _widget(kind: str, box: Box, name: str) -> ElementTree.Element:
     _add(widget, "name", name)
     for key in ("x", "y", "width", "height"):
         _add(widget, key, str(getattr(box, key)))
+    return widget
+
+
+def _pv_widget(kind: str, box: Box, pv: str) -> ElementTree.Element:
+    widget = _widget(kind, box, pv)
+    _add(widget, "pv_name", pv)
     return widget
 
 
