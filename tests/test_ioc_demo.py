@@ -195,9 +195,7 @@ def test_compact_and_standard_pdos_of_el3104(demo: Demo) -> None:
     standard = [n for n in demo.pvs if n.startswith(demo.ioc.pv(STANDARD + ":"))]
     values = caget(demo.ioc, *(demo.ioc.pv(f"{COMPACT}:CH{k}:Value") for k in (1, 2)))
 
-    assert {demo.ioc.pv(f"{COMPACT}:CH{k}:Value") for k in range(1, 5)} <= set(
-        compact
-    )
+    assert {demo.ioc.pv(f"{COMPACT}:CH{k}:Value") for k in range(1, 5)} <= set(compact)
     assert not any(name.endswith(":Underrange") for name in compact)
     assert demo.ioc.pv(f"{STANDARD}:CH1:Value") in standard
     assert demo.ioc.pv(f"{STANDARD}:CH1:Underrange") in standard
