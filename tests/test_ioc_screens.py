@@ -27,24 +27,23 @@ from tests.tree_support import built_tree
 DEMO_CHAIN = REPO_ROOT / "ioc" / "demo-chain.yaml"
 
 
+Screens = tuple[RootController, dict[str, ElementTree.Element]]
+"""The tree and its displays by file name (their `<display>` elements)."""
+
+
 @pytest.fixture(scope="module", params=["default", "every CoE object"])
 def screens(
     request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory
-) -> tuple[RootController, dict[str, ElementTree.ElementTree]]:
+) -> Screens:
     work = tmp_path_factory.mktemp("screens")
     terminals = TERMINALS_DIR
     if request.param != "default":
         terminals = terminals_with_coe(TERMINALS_DIR, work / "terminals")
     root = built_tree(DEMO_CHAIN, terminals)
     written = write_screens(root, work / "opi")
-    files = {
-        path.name: ElementTree.parse(path) for path in (work / "opi").glob("*.bob")
-    }
+    files = {path.name: _load(path) for path in (work / "opi").glob("*.bob")}
     assert written == len(files)
     return root, files
-
-
-Screens = tuple[RootController, dict[str, ElementTree.ElementTree]]
 
 
 def test_every_served_pv_is_on_a_screen(screens: Screens) -> None:
@@ -70,10 +69,10 @@ def test_no_display_holds_more_than_300_widgets(screens: Screens) -> None:
 
 def test_only_phoebus_widgets_with_the_versions_it_writes(screens: Screens) -> None:
     _, files = screens
-    for tree in files.values():
-        assert tree.getroot().tag == "display"
-        assert tree.getroot().get("version") == bob.DISPLAY_VERSION
-        for widget in tree.iter("widget"):
+    for display in files.values():
+        assert display.tag == "display"
+        assert display.get("version") == bob.DISPLAY_VERSION
+        for widget in display.iter("widget"):
             assert bob.WIDGET_TYPES[widget.get("type", "")] == widget.get("version")
             for key in ("x", "y", "width", "height"):
                 assert int(widget.findtext(key, "-1")) >= 0
@@ -81,8 +80,7 @@ def test_only_phoebus_widgets_with_the_versions_it_writes(screens: Screens) -> N
 
 def test_widgets_sit_inside_their_group_and_display(screens: Screens) -> None:
     _, files = screens
-    for name, tree in files.items():
-        display = tree.getroot()
+    for name, display in files.items():
         outer = (
             int(display.findtext("width", "0")),
             int(display.findtext("height", "0")),
@@ -112,7 +110,7 @@ def test_every_button_opens_a_display_that_exists(screens: Screens) -> None:
 
 def test_the_overview_lists_the_chain_in_bus_order(screens: Screens) -> None:
     root, files = screens
-    overview = files["ETH1.bob"].getroot()
+    overview = files["ETH1.bob"]
     groups = [group.findtext("name") for group in overview.findall("widget")[2:]]
     devices = [
         label.findtext("text")
@@ -147,7 +145,7 @@ def test_terminal_pages_group_values_by_channel_and_coe_apart(
     screens: Screens,
 ) -> None:
     root, files = screens
-    el4732 = files["ETH1_RIO1_MOD16.bob"].getroot()
+    el4732 = files["ETH1_RIO1_MOD16.bob"]
     frames = [group.findtext("name") for group in el4732.iter("widget")
               if group.get("type") == "group"]  # fmt: skip
     entries = {w.findtext("pv_name") for w in el4732.iter("widget")
@@ -161,7 +159,7 @@ def test_terminal_pages_group_values_by_channel_and_coe_apart(
     coe_frames = [
         group.findtext("name", "")
         for name in coe
-        for group in files[name].getroot().iter("widget")
+        for group in files[name].iter("widget")
         if group.get("type") == "group"
     ]
     assert bool(coe) == bool(el3104.coe_attributes)
@@ -180,17 +178,32 @@ def test_a_screen_too_big_for_one_display_continues_on_the_next() -> None:
 
     assert [name for name, _ in pages] == ["T.bob", "T_2.bob", "T_3.bob"]
     assert all(bob.count_widgets(tree) <= MAX_WIDGETS for _, tree in pages)
-    titles = [g.findtext("name") for _, tree in pages
-              for g in tree.getroot().findall("widget[@type='group']")]  # fmt: skip
+    roots = [_root(tree) for _, tree in pages]
+    titles = [g.findtext("name") for display in roots
+              for g in display.findall("widget[@type='group']")]  # fmt: skip
     assert titles == ["Small", "Huge (1/3)", "Huge (2/3)", "Huge (3/3)"]
-    buttons = [[b.findtext("text") for b in t.getroot().findall("widget")
-                if b.get("type") == "action_button"] for _, t in pages]  # fmt: skip
+    buttons = [[b.findtext("text") for b in display.findall("widget")
+                if b.get("type") == "action_button"] for display in roots]  # fmt: skip
     assert buttons == [["Next page"], ["Previous page", "Next page"], ["Previous page"]]
-    shown = [e.text for _, t in pages for e in t.iter("pv_name")]
+    shown = [e.text or "" for display in roots for e in display.iter("pv_name")]
     assert sorted(shown) == sorted([f"P:V{k}" for k in range(250)] * 1
                                    + [f"P:V{k}_RBV" for k in range(250)]
                                    + [f"P:V{k}" for k in range(3)]
                                    + [f"P:V{k}_RBV" for k in range(3)])  # fmt: skip
+
+
+def _load(path: Path) -> ElementTree.Element:
+    display = ElementTree.parse(path).getroot()
+    assert display is not None
+    return display
+
+
+def _root(
+    tree: ElementTree.ElementTree[ElementTree.Element],
+) -> ElementTree.Element:
+    display = tree.getroot()
+    assert display is not None
+    return display
 
 
 def _fits(widget: ElementTree.Element, outer: tuple[int, int]) -> bool:
@@ -209,6 +222,6 @@ def test_without_ca_the_screens_name_pva_pvs(tmp_path: Path) -> None:
 
     write_screens(root, tmp_path / "opi", ca=False)
 
-    index = ElementTree.parse(tmp_path / "opi" / "index.bob")
+    index = _load(tmp_path / "opi" / "index.bob")
     names = [e.text or "" for e in index.iter("pv_name")]
     assert names and all(name.startswith("pva://") for name in names)
