@@ -199,7 +199,7 @@ def _load(path: Path) -> ElementTree.Element:
 
 
 def _root(
-    tree: ElementTree.ElementTree[ElementTree.Element],
+    tree: ElementTree.ElementTree[ElementTree.Element | None],
 ) -> ElementTree.Element:
     display = tree.getroot()
     assert display is not None
