@@ -60,7 +60,7 @@ from collections import defaultdict
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from enum import StrEnum
-from functools import cached_property, lru_cache
+from functools import lru_cache
 from typing import Final
 
 from fastcs_ethercat.errors import UserError
@@ -235,17 +235,6 @@ class PvNames:
     def pv(self, request: PvRequest) -> str:
         """The full PV name of an attribute (its `_RBV` twin adds 4 characters)."""
         return ":".join([*self.controller_path(request.path), self.leaves[request]])
-
-    @cached_property
-    def _shortened_nodes(self) -> frozenset[tuple[Node, ...] | PvRequest | None]:
-        return frozenset(shortening.node for shortening in self.shortened)
-
-    def is_shortened(self, request: PvRequest) -> bool:
-        """Whether the PV name of `request` differs from its readable one."""
-        nodes = self._shortened_nodes
-        return request in nodes or any(
-            request.path[:depth] in nodes for depth in range(1, len(request.path) + 1)
-        )
 
     def below(self, request: PvRequest, depth: int) -> tuple[str, ...]:
         """The segments of an attribute below the first `depth` levels of its
