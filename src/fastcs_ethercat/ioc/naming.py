@@ -35,11 +35,9 @@ terminal type gets the same suffixes everywhere in the IOC; a chain that
 grows past `Term 99` gives every value one character less room (a name at
 its limit then changes, and says so). A level longer than its budget (an
 alias, a terminal TwinCAT calls by a name of its own) takes its room from
-the values below it only. Only a name over its room is shortened: first the
-inner lower-case vowels of its longest words go (`Underrange` ->
-`Undrrng`), then its words are cut short, and last it is cut and marked with
-`X` and a hash of its TwinCAT name; each is returned in `PvNames.shortened`,
-nothing silent.
+the values below it only. Only a name over its room is shortened
+(`shorten.fit`: vowels, then cut words, last a hash of its TwinCAT name);
+each is returned in `PvNames.shortened`, nothing silent.
 
 Aliases pin a segment: the key is the TwinCAT path of a master, coupler,
 terminal or value, its names joined with `^`
@@ -53,7 +51,6 @@ line naming both.
 
 from __future__ import annotations
 
-import hashlib
 import re
 import unicodedata
 from collections import defaultdict
@@ -65,6 +62,13 @@ from typing import Final
 
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.ioc.plan import CoePoint, Point
+from fastcs_ethercat.ioc.shorten import (
+    HASH_LENGTHS,
+    drop_inner_vowels,
+    fit,
+    numbered,
+    with_hash,
+)
 
 MAX_PV_LENGTH: Final = 60
 """EPICS record names (and FastCS's CA transport) stop at 60 characters."""
@@ -143,17 +147,9 @@ MAX_PREFIX_LENGTH: Final = (
 )
 """The longest prefix that leaves `MIN_LEAF` for every value."""
 
-_HASH_MARK = "X"
-_VOWELS_DROPPED = "vowels dropped"
-_WORDS_CUT = "words cut short"
-_MIN_WORD = 2
-_FIRST_HASH_LENGTH = 4
-_HASH_LENGTHS: Final = (4, 6, 8, 10)
 _PREFIX_RE = re.compile(r"^[A-Za-z0-9_:-]+$")
 _SEGMENT_RE = re.compile(r"^[A-Z][A-Za-z0-9]*$")
 _WORD_RE = re.compile(r"[A-Za-z0-9]+")
-_PASCAL_WORD_RE = re.compile(r"[A-Z][a-z]*|[a-z]+|[0-9]+")
-_INNER_VOWELS_RE = re.compile(r"(?<=.)[aeiou]")
 _ABBREVIATIONS: Final[dict[str, str]] = {"channel": "Ch", "standard": "Std"}
 _SPECIAL_CHARACTERS: Final = {"%": " Pct ", "°": " Deg ", "µ": "u", "μ": "u"}
 _DEFAULT_PATTERNS: Final = {
@@ -531,24 +527,28 @@ def _resolve_siblings(
     hashed: set[int] = set()
     for index, item in enumerate(wanted):
         if item.pinned is None and not item.fixed:
-            chosen[index], reason = _fit(readable[index], item.cap, item.hash_source)
-            if reason:
-                reasons[index] = reason
-            if reason and not reason.startswith((_VOWELS_DROPPED, _WORDS_CUT)):
+            fitted = fit(readable[index], item.cap, item.hash_source)
+            chosen[index] = fitted.segment
+            if fitted.reason:
+                reasons[index] = fitted.reason
+            if fitted.hashed:
                 hashed.add(index)
-    for length in _HASH_LENGTHS:
+    for length in HASH_LENGTHS:
         clashing = _clashing(wanted, chosen)
         if not clashing:
             break
         for index in clashing:
             item = wanted[index]
             if item.cap >= length + 2:
-                base = _drop_inner_vowels(readable[index], item.cap)
-                chosen[index] = _with_hash(base, item.cap, item.hash_source, length)
+                base = drop_inner_vowels(readable[index], item.cap)
+                chosen[index] = with_hash(base, item.cap, item.hash_source, length)
                 reasons[index] = "made distinct from a sibling with the same name"
                 hashed.add(index)
     for index in _clashing(wanted, chosen):
-        chosen[index] = _numbered(wanted[index], readable[index], chosen, index)
+        item = wanted[index]
+        taken = {s.lower() for i, s in chosen.items() if i != index}
+        base = drop_inner_vowels(readable[index], item.cap)
+        chosen[index] = numbered(base, item.cap, taken | RESERVED_SEGMENTS)
         reasons[index] = "numbered apart from a sibling with the same name"
         hashed.add(index)
     _check_pinned(wanted, chosen)
@@ -636,66 +636,6 @@ def _check_pinned(wanted: list[_Wanted], chosen: dict[int, str]) -> None:
                 f" ({chosen[other_index]}): choose another",
                 where=f"pv_aliases[{item.key!r}]",
             )
-
-
-def _numbered(item: _Wanted, readable: str, chosen: dict[int, str], index: int) -> str:
-    """Last resort when hashes collide: the first free `X<n>` tag."""
-    taken = {s.lower() for i, s in chosen.items() if i != index} | RESERVED_SEGMENTS
-    base = _drop_inner_vowels(readable, item.cap)
-    number = 0
-    while True:
-        tag = f"{_HASH_MARK}{number:X}"
-        candidate = (base or "N")[: item.cap - len(tag)] + tag
-        if candidate.lower() not in taken:
-            return candidate
-        number += 1
-
-
-def _fit(default: str, cap: int, hash_source: str) -> tuple[str, str]:
-    """The default if it fits; else vowels dropped; else its words cut short;
-    else cut and hashed."""
-    if not default:
-        return _with_hash("", cap, hash_source, _FIRST_HASH_LENGTH), "empty name"
-    if len(default) <= cap:
-        return default, ""
-    compressed = _drop_inner_vowels(default, cap)
-    if len(compressed) <= cap:
-        return compressed, f"{_VOWELS_DROPPED} to fit {cap} characters"
-    abbreviated = _cut_words(compressed, cap)
-    if len(abbreviated) <= cap:
-        return abbreviated, f"{_WORDS_CUT} to fit {cap} characters"
-    cut = _with_hash(compressed, cap, hash_source, _FIRST_HASH_LENGTH)
-    return cut, f"cut to {cap} characters"
-
-
-def _drop_inner_vowels(segment: str, cap: int) -> str:
-    """Drop inner lower-case vowels, longest word first, until it fits."""
-    words = _PASCAL_WORD_RE.findall(segment)
-    order = sorted(range(len(words)), key=lambda i: (-len(words[i]), i))
-    for index in order:
-        if sum(map(len, words)) <= cap:
-            break
-        words[index] = _INNER_VOWELS_RE.sub("", words[index])
-    return "".join(words)
-
-
-def _cut_words(segment: str, cap: int) -> str:
-    """Cut the longest word by one letter (the first of equals) until it fits
-    or every word is down to `_MIN_WORD` (`EnblAtmtcClbrtn` -> `EnblAtmtcClbr`)."""
-    words = _PASCAL_WORD_RE.findall(segment)
-    while sum(map(len, words)) > cap:
-        index = max(range(len(words)), key=lambda i: (len(words[i]), -i))
-        if len(words[index]) <= _MIN_WORD or words[index].isdigit():
-            break
-        words[index] = words[index][:-1]
-    return "".join(words)
-
-
-def _with_hash(base: str, cap: int, hash_source: str, length: int) -> str:
-    """`base` cut so that `X` and `length` hex digits of the hash fit in `cap`."""
-    digest = hashlib.sha1(hash_source.encode("utf-8")).hexdigest().upper()
-    tag = _HASH_MARK + digest[:length]
-    return (base or "N")[: cap - len(tag)] + tag
 
 
 def _words_of(text: str) -> list[str]:
