@@ -66,16 +66,29 @@ def _point(symbol: str, type_name: str, **extra: Any) -> Point:
     )
 
 
+CHANNEL_1 = {"channel": 1}
 ANALOG_POINTS = [
-    _point(f"{ANALOG}.AI Standard Channel 1.Value", "INT", units="V"),
     _point(
-        f"{ANALOG}.AI Standard Channel 1.Status.Overrange", "BIT", kind=PointKind.BIT
+        f"{ANALOG}.AI Standard Channel 1.Value",
+        "INT",
+        units="V",
+        entry_name="Value",
+        **CHANNEL_1,
+    ),
+    _point(
+        f"{ANALOG}.AI Standard Channel 1.Status.Overrange",
+        "BIT",
+        kind=PointKind.BIT,
+        entry_name="Status.Overrange",
+        **CHANNEL_1,
     ),
     _point(
         f"{ANALOG}.AI Standard Channel 1.Status.Limit 1",
         "BIT2",
         kind=PointKind.BITS,
         bit_size=2,
+        entry_name="Status.Limit 1",
+        **CHANNEL_1,
     ),
     _point(f"{ANALOG}.Scaled", "LREAL", byte_size=8),
     _point(f"{ANALOG}.Counter", "UDINT", byte_size=4),
@@ -90,7 +103,8 @@ ANALOG_POINTS = [
     _point(f"{ANALOG}.Strange", "NO_SUCH_TYPE"),
 ]
 COE = [CoePoint("presentation", 0x8000, 0x02, "DT0800EN03", 3, True,
-                enum_texts=((0, "Signed"), (1, "Unsigned")))]  # fmt: skip
+                enum_texts=((0, "Signed"), (1, "Unsigned")), name="Presentation",
+                object_name="AI Settings")]  # fmt: skip
 
 
 def _plan() -> SystemPlan:
@@ -163,9 +177,10 @@ def test_tree_levels_and_names_follow_the_default_scheme() -> None:
     root = _root(Recorder())
     names = [entry.name for entry in root.pvs()]
 
-    assert "TEST:ETH1:RIO1:MOD2:AIStdCh1Value" in names
+    assert "TEST:ETH1:RIO1:MOD2:CH1:Value" in names
+    assert "TEST:ETH1:RIO1:MOD2:CH1:Overrange" in names
     assert "TEST:ETH1:RIO1:MOD2:Mode_RBV" in names
-    assert "TEST:ETH1:RIO1:MOD2:CoePresentation" in names
+    assert "TEST:ETH1:RIO1:MOD2:C8000:Presentation_RBV" in names
     assert "TEST:ETH1:RIO1:MOD2:CoeRefresh" in names
     assert "TEST:ETH1:RIO1:MOD3:Raw" in names
     assert "TEST:ETH1:RIO1:AlState" in names
@@ -173,6 +188,19 @@ def test_tree_levels_and_names_follow_the_default_scheme() -> None:
     assert "TEST:PollRate" in names
     assert all(len(name) <= 60 for name in names)
     assert [e.line() for e in root.pvs()] == [e.line() for e in _root(Recorder()).pvs()]
+
+
+def test_channels_and_coe_objects_are_sub_controllers_of_the_terminal() -> None:
+    terminal = _analog(_root(Recorder()))
+    channel, coe = terminal.sub_controllers["CH1"], terminal.sub_controllers["C8000"]
+
+    assert list(terminal.sub_controllers) == ["CH1", "C8000"]
+    assert list(channel.attributes) == ["Value", "Overrange", "Limit1"]
+    assert channel.path == ["TEST", "ETH1", "RIO1", "MOD2", "CH1"]
+    assert channel.attributes["Value"] is terminal.by_key[ANALOG_POINTS[0].key]
+    assert coe.attributes["Presentation"] is terminal.coe_attributes[0]
+    assert coe.description == "CoE 0x8000 AI Settings"
+    assert "Mode" in terminal.attributes and "AlState" in terminal.attributes
 
 
 def test_types_keep_width_signedness_and_precision() -> None:
@@ -208,8 +236,8 @@ def test_read_only_serves_outputs_and_coe_read_only() -> None:
     root = _root(Recorder(), read_only=True)
     entries = {e.name: e for e in root.pvs()}
 
-    assert entries["TEST:ETH1:RIO1:MOD2:AOOutput"].access == "r"
-    assert entries["TEST:ETH1:RIO1:MOD2:CoePresentation"].access == "r"
+    assert entries["TEST:ETH1:RIO1:MOD2:AOOutput"].access == "r"  # no channel
+    assert entries["TEST:ETH1:RIO1:MOD2:C8000:Presentation"].access == "r"
 
 
 def test_unknown_type_gets_the_generic_controller() -> None:
@@ -340,6 +368,6 @@ def test_aliases_pin_segments_and_unknown_ones_are_reported() -> None:
     root = _root(Recorder(), pv_aliases=aliases)
     names = {entry.name for entry in root.pvs()}
 
-    assert "TEST:ECAT:RIO1:PIEZO:Pos1" in names
+    assert "TEST:ECAT:RIO1:PIEZO:CH1:Pos1" in names
     assert "TEST:ECAT:RIO1:PIEZO:Mode_RBV" in names
     assert root.names.unused_aliases == ("Device 9 (EtherCAT)",)

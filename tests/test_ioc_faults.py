@@ -45,13 +45,13 @@ from tests.ioc_support import (
 
 DEMO_CHAIN = REPO_ROOT / "ioc" / "demo-chain.yaml"
 INVALID = 3
-SINE = "ETH1:RIO1:MOD5:AICompactCh1"  # Term 5 (EL3104): moves all the time
-STEADY = "ETH1:RIO21:MOD22:AIStdCh1Value"  # Term 22 (EL3104): set by tests
+SINE = "ETH1:RIO1:MOD5:CH1:Value"  # Term 5 (EL3104): moves all the time
+STEADY = "ETH1:RIO21:MOD22:CH1:Value"  # Term 22 (EL3104): set by tests
 STEADY_SYMBOL = "Term 22 (EL3104).AI Standard Channel 1.Value"
 OUTPUT = "Term 24 (EP4374-0002).AO Outputs Channel 3"
-NEIGHBOUR = "ETH1:RIO21:MOD22:AIStdCh2Value"  # same terminal, other symbol
-NEIGHBOUR_STATUS = "ETH1:RIO21:MOD22:AIStdCh1StatusOverrange"  # STEADY's struct
-COE = "ETH1:RIO21:MOD22:CoeOffset"  # Term 22's CoE 0x8000:11, pinned by alias
+NEIGHBOUR = "ETH1:RIO21:MOD22:CH2:Value"  # same terminal, other symbol
+NEIGHBOUR_STATUS = "ETH1:RIO21:MOD22:CH1:Overrange"  # STEADY's struct
+COE = "ETH1:RIO21:MOD22:C8000:CoeOffset"  # Term 22's CoE 0x8000:11, pinned by alias
 COE_PATH = (
     "Device 1 (EtherCAT)^Term 21 (EK1122)^Term 22 (EL3104)"
     "^Coe ai_settings_8000_user_scale_offset"
@@ -454,7 +454,7 @@ def test_writes_are_checked_rejected_while_away_and_alarm_on_error(
     rig: Rig,
 ) -> None:
     ioc = rig.ioc
-    pv = rig.pv("ETH1:RIO21:MOD24:AOOutputsCh3")
+    pv = rig.pv("ETH1:RIO21:MOD24:CH3:AnalogOutput")
     ioc.tool("caput", pv, "321")
     assert wait_for(lambda: rig.sim.get_symbol(OUTPUT) == 321, 10)
 

@@ -49,6 +49,11 @@ class Point:
     description: str = ""
     units: str = ""
     enum_texts: tuple[tuple[int, str], ...] = ()
+    channel: int | None = None
+    """The terminal channel it belongs to (its PV sits under `CH<n>`)."""
+    entry_name: str = ""
+    """The ESI entry it reads within its symbol (`Status.Underrange`, `Value`):
+    its PV name; "" names it by its symbol."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -64,6 +69,10 @@ class CoePoint:
     description: str = ""
     default: str = ""
     enum_texts: tuple[tuple[int, str], ...] = ()
+    name: str = ""
+    """The sub-item's ESI name (the object's when it has none): its PV name."""
+    object_name: str = ""
+    """The object's ESI name (`AI Settings`): its screen group."""
 
 
 @dataclass(frozen=True, slots=True)
