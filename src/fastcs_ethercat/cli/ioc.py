@@ -88,6 +88,9 @@ def ioc_command(
             "give the IOC configuration with --config FILE "
             "(`fastcs-ethercat ioc schema` prints its JSON schema)"
         )
+    from fastcs_ethercat.ioc.collector import collect_rarely
+
+    collect_rarely()  # before the imports and the tree: see `ioc.collector`
     from fastcs_ethercat.ioc.fastcs_adapter import check_installed
 
     check_installed()
@@ -133,6 +136,9 @@ def demo_command(
 ) -> None:
     """Run the simulator with the demo chain and an IOC against it (loopback)."""
     apply_log_level(log_level)
+    from fastcs_ethercat.ioc.collector import collect_rarely
+
+    collect_rarely()  # before the imports and the tree: see `ioc.collector`
     from fastcs_ethercat.ioc.fastcs_adapter import check_installed
 
     check_installed()

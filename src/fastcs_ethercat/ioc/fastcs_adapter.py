@@ -864,10 +864,13 @@ _DEFERRED: Final = {
     "fastcs.transports.epics.emission": ("emit_docs_files", "emit_gui_files"),
     "fastcs.transports.epics.gui": ("EpicsGUI",),
     "fastcs.transports.epics.pva.gui": ("PvaEpicsGUI",),
+    "prompt_toolkit.patch_stdout": ("StdoutProxy",),
 }
 """Modules FastCS imports at start only to define names an IOC without an
-interactive shell or GUI files never calls (IPython, pvi): stood in for by
-names that import the real module when first called."""
+interactive shell or GUI files never calls (IPython, pvi; prompt_toolkit,
+0.1 s, for `fastcs.logging.configure_logging`, which this IOC does not call:
+`logs.py` routes FastCS's log): stood in for by names that import the real
+module when first called."""
 _DSO_PACKAGE: Final = "setuptools_dso"
 _DSO_RUNTIME: Final = "setuptools_dso.runtime"
 _DSO_NAMES: Final = ("find_dso", "dylink_prepare_dso")

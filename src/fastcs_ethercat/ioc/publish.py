@@ -13,19 +13,16 @@ Alarms are not sticky here either: a published value carries NO_ALARM (see
 
 from __future__ import annotations
 
-import gc
 import time
 from collections.abc import Awaitable, Iterable
 from typing import Any, Final, NamedTuple
 
 from fastcs.attributes import AttrR
 
+from fastcs_ethercat.ioc.collector import freeze_new, settle_garbage_collector
 from fastcs_ethercat.ioc.deadband import Deadbands
 from fastcs_ethercat.ioc.fastcs_adapter import CycleWrites, Update, ValueRoute
 
-GC_THRESHOLD: Final = 50_000
-"""Tracked objects allocated (net) before a young collection; CPython's 700
-makes a rack that posts 100 000 values a second collect 150 times a second."""
 FREEZE_AFTER_ROUTES: Final = 100
 """A batch that made this many routes (a first cycle) freezes the heap again."""
 
@@ -38,21 +35,6 @@ class Published(NamedTuple):
 
     posted: int
     failures: list[Failure]
-
-
-def settle_garbage_collector() -> None:
-    """Keep the collector off the publish path (called once the IOC serves).
-
-    Everything built so far (the tree, its records and PVs, hundreds of
-    thousands of objects) lives as long as the IOC: it is moved out of the
-    collector's sight (`gc.freeze`), else every full collection walks it all;
-    and a young collection waits for `GC_THRESHOLD` objects, by when a poll
-    cycle's short-lived tuples are gone. Both took half the CPU of a rack
-    whose every value changes.
-    """
-    gc.freeze()
-    _, *older = gc.get_threshold()
-    gc.set_threshold(GC_THRESHOLD, *older)
 
 
 class Publisher:
@@ -134,7 +116,7 @@ class Publisher:
         finally:
             writes.flush()
         if made >= FREEZE_AFTER_ROUTES:
-            gc.freeze()  # routes live as long as the IOC: see `start`
+            freeze_new()  # routes live as long as the IOC
         self.posted += posted
         for attribute, pending in waiting:
             try:
