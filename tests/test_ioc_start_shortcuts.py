@@ -158,7 +158,7 @@ def test_the_collector_runs_rarely_and_freezes_what_the_start_built() -> None:
     out = _run(
         """
         import gc
-        from fastcs_ethercat.ioc import collector
+        from fastcs_ethercat import collector
         collector.collect_rarely()
         print(gc.get_threshold()[0] == collector.GC_THRESHOLD, gc.isenabled())
         built = [[position] for position in range(1000)]

@@ -19,7 +19,7 @@ from typing import Any, Final, NamedTuple
 
 from fastcs.attributes import AttrR
 
-from fastcs_ethercat.ioc.collector import freeze_new, settle_garbage_collector
+from fastcs_ethercat.collector import freeze_new, settle_garbage_collector
 from fastcs_ethercat.ioc.deadband import Deadbands
 from fastcs_ethercat.ioc.fastcs_adapter import CycleWrites, Update, ValueRoute
 
