@@ -50,7 +50,7 @@ STEADY = "ETH1:RIO21:MOD22:AIStdCh1Value"  # Term 22 (EL3104): set by tests
 STEADY_SYMBOL = "Term 22 (EL3104).AI Standard Channel 1.Value"
 OUTPUT = "Term 24 (EP4374-0002).AO Outputs Channel 3"
 NEIGHBOUR = "ETH1:RIO21:MOD22:AIStdCh2Value"  # same terminal, other symbol
-NEIGHBOUR_STATUS = "ETH1:RIO21:MOD22:AIStdCh1StatusOverrange"  # STEADY's struct
+NEIGHBOUR_STATUS = "ETH1:RIO21:MOD22:AIStdCh1StatusOverrange"  # STEADY's symbol
 COE = "ETH1:RIO21:MOD22:CoeOffset"  # Term 22's CoE 0x8000:11, pinned by alias
 COE_PATH = (
     "Device 1 (EtherCAT)^Term 21 (EK1122)^Term 22 (EL3104)"
@@ -319,9 +319,12 @@ def test_sum_read_error_alarms_and_recovers(rig: Rig) -> None:
 
 @pytest.mark.e2e
 def test_item_error_alarms_only_the_failing_symbols_pvs(rig: Rig) -> None:
-    """TwinCAT fails one item of a sum read: that PV goes INVALID (READ), its
-    neighbours in the same terminal and struct and every other PV keep
-    updating; when the item reads again the PV is valid and follows."""
+    """TwinCAT fails one item of a sum read: the PVs of that symbol go
+    INVALID (READ), the terminal's other symbols and every other PV keep
+    updating; when the item reads again the PVs are valid and follow.
+
+    An item is one symbol of the table read by its handle: a member that
+    cannot be read fails its whole structure (`Status` with `Value`)."""
     steady, neighbour = rig.pv(STEADY), rig.pv(NEIGHBOUR)
     start = time.monotonic()
     rig.sim.add_fault("error", code=0x707, symbols=[STEADY_SYMBOL])
@@ -348,7 +351,7 @@ def test_item_error_alarms_only_the_failing_symbols_pvs(rig: Rig) -> None:
 
     assert loss < LOSS_LIMIT_S
     assert updates[SINE] >= 5 and updates[NEIGHBOUR] >= 5, updates
-    assert severities == {SINE: 0, NEIGHBOUR: 0, NEIGHBOUR_STATUS: 0}
+    assert severities == {SINE: 0, NEIGHBOUR: 0, NEIGHBOUR_STATUS: INVALID}
     steady_line = next(line for line in alarms.splitlines() if steady in line)
     assert "INVALID" in steady_line and "READ" in steady_line, alarms
     neighbour_line = next(line for line in alarms.splitlines() if neighbour in line)
@@ -465,8 +468,8 @@ def test_writes_are_checked_rejected_while_away_and_alarm_on_error(
     time.sleep(1.0)
     kept = rig.sim.get_symbol(OUTPUT)
 
-    # outputs are in group 0xF020 on the device port (sim/layout.py)
-    rig.sim.add_fault("error", code=1793, group=0xF020)
+    # writes go by handle: group 0xF005 (value by handle) on the device port
+    rig.sim.add_fault("error", code=1793, group=0xF005)
     ioc.tool("caput", pv, "987")
     alarm = ioc.tool("caget", "-a", pv)
     rig.sim.clear_faults()

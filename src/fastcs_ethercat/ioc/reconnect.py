@@ -95,6 +95,7 @@ class Reconnection:
         self.supervisor = Supervisor(self.probe, self, plan.symbol_version)
         connection.state_of = lambda: self.supervisor.state
         connection.wake = self.supervisor.poke
+        connection.resync = self.supervisor.request_resync
         self._tasks: list[asyncio.Task[Any]] = []
         self._coe_refresh: asyncio.Task[None] | None = None
 

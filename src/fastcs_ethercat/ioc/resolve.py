@@ -174,6 +174,10 @@ def _point(
         writable=writable,
         description=description,
         units=units,
+        source=entry.name,
+        source_offset=member.byte_offset,
+        source_type=entry.type_name,
+        source_size=entry.size,
     )
 
 
