@@ -436,6 +436,29 @@ def test_lost_link_alarms_only_that_slave(rig: Rig) -> None:
 
 
 @pytest.mark.e2e
+def test_lost_link_is_judged_per_port(rig: Rig) -> None:
+    """Term 6 loses its link: Term 5 before it reports a missing link on its
+    port B (0x24), which is Term 6's fault, not its own: Term 5's values stay
+    valid and its LinkOk true; only Term 6 alarms."""
+    start = time.monotonic()
+    rig.sim.add_fault("link_lost", name="Term 6 (EL2024)")
+    lost = rig.pv("ETH1:RIO1:MOD6:Ch1_RBV")
+    alarmed = wait_for(lambda: "INVALID" in rig.ioc.tool("caget", "-a", lost), 5)
+    before = [rig.pv(f"ETH1:RIO1:MOD5:{leaf}") for leaf in ("LinkOk", "LinkState")]
+    own = [rig.pv(f"ETH1:RIO1:MOD6:{leaf}") for leaf in ("LinkOk", "LinkState")]
+    diagnostics = wait_for(
+        lambda: (found := caget(rig.ioc, *before, *own))[own[1]] != "0" and found, 5
+    )
+    time.sleep(0.5)
+
+    assert alarmed
+    assert diagnostics[before[0]] == "True" and diagnostics[before[1]] == "36"
+    assert diagnostics[own[0]] == "False" and diagnostics[own[1]] == "1"
+    assert rig.watch.first(rig.pv(SINE), start, INVALID) is None
+    assert rig.watch.severity(rig.pv(SINE)) == 0
+
+
+@pytest.mark.e2e
 def test_online_change_resolves_again_without_restart(rig: Rig) -> None:
     pid = rig.ioc.process.pid
     version = int(rig.root("SymbolVersion"))

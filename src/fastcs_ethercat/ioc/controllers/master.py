@@ -430,9 +430,12 @@ class MasterController(Controller):
                 await self.setpoints.unknown(attr, shown, str(error))
             raise
         except Exception as error:
-            logger.error("write of %r to %s failed: %s", value, point.symbol, error)
+            why = _why(error)
+            logger.error("write of %r to %s failed: %s", value, point.symbol, why)
             if attr is not None:
-                await self.setpoints.failed(attr, shown, _why(error))
+                await self.setpoints.failed(attr, shown, f"not written: {why}")
+            if isinstance(error, AdsError):  # its text names a handle: name the symbol
+                raise WriteError(f"{point.symbol} not written: {why}") from error
             raise
         if attr is not None:
             await self.setpoints.written(attr, shown)
@@ -470,12 +473,13 @@ class MasterController(Controller):
             now = await client.read_by_handle(handle, len(data))
         except AdsError as again:
             raise OutcomeUnknownError(
-                f"no answer ({error.code:#x}), nor to the read back "
-                f"({describe_return_code(again.code)}): outcome unknown"
+                f"outcome unknown: no answer ({describe_return_code(error.code)}), "
+                f"nor to the read back ({describe_return_code(again.code)})"
             ) from error
         if now != data:
-            raise AdsError(
-                error.code, "write", client.target, "timed out and not applied"
+            raise WriteError(
+                f"no answer ({describe_return_code(error.code)}), and the read "
+                "back shows it was not applied"
             ) from error
         logger.warning("a write timed out but was applied (read back)")
 
@@ -547,9 +551,20 @@ class OutcomeUnknownError(TimeoutError):
     """A write neither answered nor readable back: it may have landed."""
 
 
+class WriteError(RuntimeError):
+    """A write the target did not take."""
+
+
 def _why(error: Exception) -> str:
-    """A failed write's reason, for the setpoint's alarm text."""
-    return f"not written: {error}" if str(error) else type(error).__name__
+    """Why a write failed, in a few words."""
+    if isinstance(error, AdsHandleInvalidError):
+        return (
+            f"the symbol table changed ({describe_return_code(error.code)}); "
+            "resolving again"
+        )
+    if isinstance(error, AdsError):
+        return describe_return_code(error.code)
+    return str(error) or type(error).__name__
 
 
 def _fastcs_value(attr: AttrR[Any, Any] | None, value: Any) -> Any:
