@@ -528,6 +528,15 @@ def watch_ca_puts(
     return True
 
 
+def take_over_setpoints(attribute: Attribute[Any, Any]) -> None:
+    """The IOC shows this output's setpoints itself from now on
+    (`ioc.setpoints`): FastCS's own sync at the first value is skipped."""
+    from fastcs.attributes import AttrRW
+
+    if isinstance(attribute, AttrRW):
+        attribute._setpoint_initialised = True  # pyright: ignore[reportAttributeAccessIssue]
+
+
 async def sync_setpoint(attribute: Attribute[Any, Any], value: Any) -> None:
     """Show `value` on every setpoint PV of `attribute` (CA out record
     without processing, PVA setpoint PV), as FastCS does at start."""

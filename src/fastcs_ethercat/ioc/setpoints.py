@@ -48,6 +48,7 @@ class Setpoints:
         attributes = list(attributes)
         self.health.follow_ca_puts(attributes)
         for attribute in attributes:
+            fastcs_adapter.take_over_setpoints(attribute)
             self.health.setpoint_problem(attribute, Status.UDF, WAITING)
             self.health.watch_value(attribute, self._from_plc)
 
