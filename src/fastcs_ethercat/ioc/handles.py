@@ -54,9 +54,15 @@ class PointHandles:
     """Written symbol -> write handle."""
     problems: dict[str, str] = field(default_factory=dict)
     """Symbol -> why it has no usable handle."""
+    unused: list[int] = field(default_factory=list)
+    """Handles taken but not used (their symbol changed): given back with
+    the others."""
 
     def all(self) -> list[int]:
-        return sorted(set(self.reads.values()) | set(self.writes.values()))
+        """Every handle taken, to give back."""
+        return sorted(
+            set(self.reads.values()) | set(self.writes.values()) | set(self.unused)
+        )
 
     def read_problem(self, point: Point) -> str | None:
         """Why `point` cannot be read, or None."""
@@ -70,8 +76,11 @@ class PointHandles:
         return self.problems.get(point.symbol, "no handle")
 
 
-async def acquire(client: AdsClient, points: Iterable[Point]) -> PointHandles:
-    """Handles for reading every point and writing every writable one.
+async def acquire(
+    client: AdsClient, points: Iterable[Point], *, writes: bool = True
+) -> PointHandles:
+    """Handles for reading every point and (with `writes`) writing every
+    writable one.
 
     Raises AdsError only when the requests themselves fail (the target does
     not answer); a symbol that has no handle is a problem, not an error.
@@ -80,7 +89,7 @@ async def acquire(client: AdsClient, points: Iterable[Point]) -> PointHandles:
     written: list[str] = []
     for point in points:
         shapes.setdefault(point.source_name, point.source_shape)
-        if point.writable and point.symbol not in written:
+        if writes and point.writable and point.symbol not in written:
             written.append(point.symbol)
     sources = list(shapes)
     items: list[SumReadWriteItem] = []
@@ -98,7 +107,6 @@ async def acquire(client: AdsClient, points: Iterable[Point]) -> PointHandles:
     ]
     outcomes = await client.sum_read_write(items) if items else []
     found = PointHandles()
-    unused: list[int] = []
     for n, name in enumerate(sources):
         handle, info = outcomes[2 * n], outcomes[2 * n + 1]
         problem = _handle_problem(handle) or _shape_problem(info, shapes[name])
@@ -108,15 +116,13 @@ async def acquire(client: AdsClient, points: Iterable[Point]) -> PointHandles:
         else:
             found.problems[name] = problem or "no handle"
             if number is not None:
-                unused.append(number)
+                found.unused.append(number)
     for name, outcome in zip(written, outcomes[2 * len(sources) :], strict=True):
         number = _handle(outcome)
         if number is None:
             found.problems[name] = _handle_problem(outcome) or "no handle"
         else:
             found.writes[name] = number
-    if unused:
-        await release(client, unused)
     return found
 
 

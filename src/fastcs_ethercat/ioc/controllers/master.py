@@ -306,7 +306,9 @@ class MasterController(Controller):
         """
         client = await self.connection.client(self.connection.net_id, self.symbol_port)
         served = [p for g in self.groups for p in g.points]
-        self.handles = await acquire(client, served)
+        self.handles = await acquire(
+            client, served, writes=not self.connection.read_only
+        )
         self._generation += 1
         self._unreadable(served)
         self.setpoints.follow(
@@ -353,7 +355,7 @@ class MasterController(Controller):
 
     async def stop_polling(self) -> None:
         """Stop every poller and its posting task (before the clients go);
-        give the handles back while the target answers."""
+        give the handles back while the target answers (unless read-only)."""
         for group in self.groups:
             if group.poller is not None:
                 group.poller.stop()
@@ -362,7 +364,11 @@ class MasterController(Controller):
             task.cancel()
         await asyncio.gather(*tasks, return_exceptions=True)
         old, self.handles = self.handles.all(), PointHandles()
-        if old and self.connection.state is not LinkState.DISCONNECTED:
+        if (
+            old
+            and not self.connection.read_only  # never an ADS write, not even this
+            and self.connection.state is not LinkState.DISCONNECTED
+        ):
             try:
                 client = await self.connection.client(
                     self.connection.net_id, self.symbol_port
