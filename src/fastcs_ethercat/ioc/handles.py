@@ -165,7 +165,9 @@ def _shape_problem(outcome: tuple[int, bytes], wanted: tuple[str, int]) -> str |
     except AdsCodecError as error:
         return f"unreadable description: {error}"
     type_name, size = wanted
-    if (entry.type_name, entry.size) != (type_name, size):
+    if entry.size != size or entry.type_name.strip().casefold() != (
+        type_name.strip().casefold()
+    ):
         return (
             f"is {entry.type_name} ({entry.size} bytes) now, was {type_name} "
             f"({size} bytes) at discovery"

@@ -239,6 +239,7 @@ class Supervisor:
                 logger.info("target: %s", self.stats.last_error)
                 continue
             self.stats.reconnects += 1
+            self._resync_wanted = ""  # the reconnect resolved every symbol
             self._connected()
             return
 

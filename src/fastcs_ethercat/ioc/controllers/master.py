@@ -204,8 +204,8 @@ class MasterController(Controller):
         """The handles of the points polled now (taken when polling starts)."""
         self.setpoints = Setpoints(health)
         self._generation = 0
-        """Counts the handle sets taken: a write that failed on an older one
-        asks for no resync (one has happened since)."""
+        """Counts the handle sets taken and given back: a write that failed
+        on an older set asks for no resync (one is under way or done)."""
         self._group_of: dict[str, PollGroup] = {}
         self._tasks: list[asyncio.Task[Any]] = []
         self.unserved: list[tuple[str, str]] = []
@@ -364,6 +364,7 @@ class MasterController(Controller):
             task.cancel()
         await asyncio.gather(*tasks, return_exceptions=True)
         old, self.handles = self.handles.all(), PointHandles()
+        self._generation += 1
         if (
             old
             and not self.connection.read_only  # never an ADS write, not even this
