@@ -28,7 +28,7 @@ from typing import Any, Final
 
 from fastcs.attributes import Attribute, AttrR
 
-from fastcs_ethercat.ioc import alarms, fastcs_adapter
+from fastcs_ethercat.ioc import alarms
 from fastcs_ethercat.ioc.alarms import NO_ALARM, AlarmState, Severity, Status
 from fastcs_ethercat.ioc.fastcs_adapter import Parts
 from fastcs_ethercat.ioc.publish import Publisher
@@ -170,11 +170,6 @@ class Health:
         posts its own alarm (MAJOR) after the put fails, and ours goes after."""
         asyncio.get_running_loop().call_soon(self.show_setpoint, attribute)
 
-    def follow_ca_puts(self, attributes: Iterable[Attribute[Any, Any]]) -> None:
-        """Show the setpoint alarm after every CA put to these outputs."""
-        for attribute in attributes:
-            fastcs_adapter.watch_ca_puts(attribute, self.show_setpoint)
-
     async def _drop(self, attribute: Attribute[Any, Any], gone: Iterable[str]) -> None:
         key = id(attribute)
         reasons = self._reasons.get(key)
@@ -190,18 +185,18 @@ class Health:
         del self._reasons[key]
         self._attributes.pop(key, None)
         held = self._held.pop(key, None)
+        published = False
         if held is not None and isinstance(attribute, AttrR):
             try:
                 await self.publisher.publish(attribute, *held)
+                published = True
             except Exception as error:  # one line: a flood of these is unreadable
                 logger.warning(
                     "cannot post the held value of %s: %s", _name(attribute), error
                 )
-            else:
-                self._clear(attribute)
-                await self._watched(attribute, held[0])
-                return
         self._clear(attribute)
+        if published and isinstance(attribute, AttrR) and held is not None:
+            await self._watched(attribute, held[0])
 
     def _parts(self, attribute: Attribute[Any, Any]) -> Parts:
         """A setpoint with its own problem keeps showing it."""

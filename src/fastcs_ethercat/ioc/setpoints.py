@@ -45,9 +45,8 @@ class Setpoints:
     def follow(self, attributes: Iterable[AttrR[Any, Any]]) -> None:
         """Take over what these outputs' setpoints show from now (once their
         PVs are served): each waits for the PLC's value."""
-        attributes = list(attributes)
-        self.health.follow_ca_puts(attributes)
         for attribute in attributes:
+            fastcs_adapter.watch_ca_puts(attribute, self.health.show_setpoint)
             fastcs_adapter.take_over_setpoints(attribute)
             self.health.setpoint_problem(attribute, Status.UDF, WAITING)
             self.health.watch_value(attribute, self._from_plc)

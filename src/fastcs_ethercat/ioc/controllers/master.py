@@ -468,6 +468,9 @@ class MasterController(Controller):
             raise
         except AdsTimeoutError as error:
             await self._confirm(client, handle, data, error)
+            logger.warning(
+                "write to %s timed out but was applied (read back)", point.symbol
+            )
         if group.poller is not None:
             group.poller.invalidate()  # the readback shows what the PLC holds
 
@@ -488,7 +491,6 @@ class MasterController(Controller):
                 f"no answer ({describe_return_code(error.code)}), and the read "
                 "back shows it was not applied"
             ) from error
-        logger.warning("a write timed out but was applied (read back)")
 
     # -- diagnostics ---------------------------------------------------------------
 
