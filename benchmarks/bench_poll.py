@@ -6,8 +6,8 @@ Points mimic a real rack, each read by the handle of its symbol: per 4-byte
 analog channel one symbol, a status word (8 bit points) and an INT value;
 per 16 channels 16 digital bit symbols; a few oversampled arrays. For each
 size it prints the sum-read items and requests per cycle and the median time
-of `decode` over all requests when nothing changed, when 1 % of the bytes changed and when
-everything changed (every value converted and handed on).
+of `decode` over all requests when nothing changed, when 1 % of the bytes
+changed and when everything changed (every value converted and handed on).
 With --live it also polls the demo chain in the simulator and prints the
 median full cycle (sum read round trip + decode).
 """
