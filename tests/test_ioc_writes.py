@@ -240,37 +240,52 @@ def _pva_setpoint(rig: Rig, name: str) -> tuple[Any, int]:
     return value.raw.value, int(value.severity)
 
 
+def _both(rig: Rig, name: str, wanted: tuple[Any, ...]) -> tuple[Any, ...]:
+    """(PVA value, PVA severity, CA value, CA status, CA severity) of a
+    setpoint, once it is `wanted` (or after 5 s): an alarm lands just after
+    the put's answer (PVA answers a put first, then posts its alarms)."""
+    seen: list[tuple[Any, ...]] = []
+
+    def shown() -> bool:
+        seen.append((*_pva_setpoint(rig, name), *rig.setpoint(name)))
+        return seen[-1] == wanted
+
+    wait_for(shown, 5)
+    return seen[-1]
+
+
 def test_ca_and_pva_setpoints_agree_after_puts_on_either(rig: Rig) -> None:
     """A put on CA shows on the PVA setpoint and the other way round, for a
     write that reached the PLC and for one that did not (refused by the
     target): both show the value asked for, and both the same alarm."""
     name, bit = ANALOG, "ETH1:RIO1:MOD6:Ch2"
+    fine, refused = ("", "NO_ALARM"), ("WRITE", "INVALID")
     rig.ioc.tool("caput", "-c", rig.pv(name), "1234")
-    on_pva = _pva_setpoint(rig, name)
+    on_pva = _both(rig, name, (1234, 0, "1234", *fine))
     rig.context.put(rig.pv(name), 2345, timeout=5)
-    on_ca = rig.setpoint(name)
+    on_ca = _both(rig, name, (2345, 0, "2345", *fine))
     rig.context.put(rig.pv(bit), True, timeout=5)
-    bit_on_ca = rig.setpoint(bit)
+    bit_on_ca = _both(rig, bit, (True, 0, "True", *fine))
     rig.ioc.tool("caput", "-c", rig.pv(bit), "0")
-    bit_on_pva = _pva_setpoint(rig, bit)
+    bit_on_pva = _both(rig, bit, (False, 0, "False", *fine))
 
     rig.sim.add_fault("error", code=1793, group=0xF005)  # writes by handle refused
     rig.ioc.tool("caput", "-c", rig.pv(name), "3456")
-    refused_ca_put = _pva_setpoint(rig, name), rig.setpoint(name)
+    refused_ca_put = _both(rig, name, (3456, INVALID, "3456", *refused))
     with pytest.raises(Exception, match="AO Output Channel 2 not written"):
         rig.context.put(rig.pv(name), 4567, timeout=5)
-    refused_pva_put = _pva_setpoint(rig, name), rig.setpoint(name)
+    refused_pva_put = _both(rig, name, (4567, INVALID, "4567", *refused))
     rig.sim.clear_faults()
     rig.context.put(rig.pv(name), 5678, timeout=5)
-    healed = _pva_setpoint(rig, name), rig.setpoint(name)
+    healed = _both(rig, name, (5678, 0, "5678", *fine))
 
-    assert on_pva == (1234, 0)
-    assert on_ca == ("2345", "", "NO_ALARM")
-    assert bit_on_ca[0] in ("1", "True") and bit_on_ca[2] == "NO_ALARM"
-    assert bit_on_pva == (False, 0)
-    assert refused_ca_put == ((3456, INVALID), ("3456", "WRITE", "INVALID"))
-    assert refused_pva_put == ((4567, INVALID), ("4567", "WRITE", "INVALID"))
-    assert healed == ((5678, 0), ("5678", "", "NO_ALARM"))
+    assert on_pva == (1234, 0, "1234", *fine)
+    assert on_ca == (2345, 0, "2345", *fine)
+    assert bit_on_ca == (True, 0, "True", *fine)
+    assert bit_on_pva == (False, 0, "False", *fine)
+    assert refused_ca_put == (3456, INVALID, "3456", *refused)
+    assert refused_pva_put == (4567, INVALID, "4567", *refused)
+    assert healed == (5678, 0, "5678", *fine)
     assert rig.sim.get_symbol(ANALOG_SYMBOL) == 5678
 
 
