@@ -37,8 +37,8 @@ class Point:
     reads by handle as one byte, its value in bit 0.
 
     `index_group`/`index_offset` are where the live table put the point at
-    discovery (the symbol's address moved to the member's byte): shown to
-    engineers, never used to read or write.
+    discovery (the symbol's address moved to the member's byte): a record of
+    that moment, never used to read or write.
     """
 
     key: str  # stable id, unique within the IOC: "<master>/<slave>/<symbol>"
