@@ -17,6 +17,7 @@ from fastcs.attributes import AttrR, AttrRW
 from fastcs.datatypes import Bool, Enum, Int, Waveform
 
 from fastcs_ethercat.ads.constants import IndexGroup
+from fastcs_ethercat.ads.errors import AdsTimeoutError
 from fastcs_ethercat.ads.ethercat import (
     AlState,
     AlStateFlag,
@@ -35,6 +36,7 @@ from fastcs_ethercat.ioc.controllers.terminal import (
     al_state_text,
 )
 from fastcs_ethercat.ioc.datatypes import ExactFloat, IntegralFloat
+from fastcs_ethercat.ioc.handles import PointHandles
 from fastcs_ethercat.ioc.plan import (
     CoePoint,
     MasterPlan,
@@ -149,6 +151,9 @@ class Recorder:
             self.coe[offset & 0xFF] = int.from_bytes(data, "little")
         else:
             self.writes.append((group, offset, data))
+
+    async def write_by_handle(self, handle: int, data: bytes) -> None:
+        self.writes.append((IndexGroup.SYM_VALUE_BY_HANDLE, handle, data))
 
 
 def _root(
@@ -274,19 +279,70 @@ async def test_changes_are_posted_and_a_bad_value_only_marks_its_point() -> None
     assert terminal.by_key[samples.key].get().tolist() == list(range(10))
 
 
-async def test_writes_go_once_to_where_the_live_symbol_is() -> None:
+async def test_writes_go_once_by_the_handle_of_their_symbol() -> None:
     recorder = Recorder()
-    terminal = _analog(_root(recorder))
-    mode = terminal.by_key[next(p.key for p in ANALOG_POINTS if "Mode" in p.symbol)]
-    output = terminal.by_key[next(p.key for p in ANALOG_POINTS if "AO" in p.symbol)]
+    root = _root(recorder)
+    master, terminal = root.masters[0], _analog(root)
+    mode_point = next(p for p in ANALOG_POINTS if "Mode" in p.symbol)
+    output_point = next(p for p in ANALOG_POINTS if "AO" in p.symbol)
+    master.handles = PointHandles(
+        writes={mode_point.symbol: 0x101, output_point.symbol: 0x102}
+    )
+    mode = terminal.by_key[mode_point.key]
+    output = terminal.by_key[output_point.key]
     assert isinstance(mode, AttrRW) and isinstance(output, AttrRW)
 
     await mode.put(mode.datatype.validate(5), sync_setpoint=False)
     await output.put(-7, sync_setpoint=False)
+    master.handles = PointHandles(problems={output_point.symbol: "gone"})
+    with pytest.raises(LookupError, match="gone"):
+        await output.put(-8, sync_setpoint=False)
 
-    assert recorder.writes == [(0xF020, 0, b"\x05"), (0xF020, 0, b"\xf9")]
+    assert recorder.writes == [(0xF005, 0x101, b"\x05"), (0xF005, 0x102, b"\xf9")]
     with pytest.raises(ValueError):
         await output.put(1000)  # beyond SINT
+
+
+class Stalling(Recorder):
+    """A target whose writes time out; the read back answers `held`, or
+    times out too when it is None."""
+
+    def __init__(self, held: bytes | None) -> None:
+        super().__init__()
+        self.held = held
+
+    async def write_by_handle(self, handle: int, data: bytes) -> None:
+        raise AdsTimeoutError(0x745, "write", "target")
+
+    async def read_by_handle(self, handle: int, size: int) -> bytes:
+        if self.held is None:
+            raise AdsTimeoutError(0x745, "read", "target")
+        return self.held
+
+
+@pytest.mark.parametrize(
+    ("held", "outcome"),
+    [
+        (b"\xf9", None),  # applied after all: the put succeeds
+        (b"\x00", "the read back shows it was not applied"),
+        (None, "outcome unknown"),
+    ],
+)
+async def test_a_write_that_timed_out_is_decided_by_reading_it_back(
+    held: bytes | None, outcome: str | None
+) -> None:
+    root = _root(Stalling(held))
+    master, terminal = root.masters[0], _analog(root)
+    point = next(p for p in ANALOG_POINTS if "AO" in p.symbol)
+    master.handles = PointHandles(writes={point.symbol: 0x102})
+    output = terminal.by_key[point.key]
+    assert isinstance(output, AttrRW)
+
+    if outcome is None:
+        await output.put(-7, sync_setpoint=False)
+    else:
+        with pytest.raises(Exception, match=outcome):
+            await output.put(-7, sync_setpoint=False)
 
 
 async def test_coe_is_read_on_demand_written_and_read_back() -> None:

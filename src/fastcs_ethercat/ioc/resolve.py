@@ -164,6 +164,10 @@ def _point(
         units=units,
         channel=channel,
         entry_name=entry_name,
+        source=entry.name,
+        source_offset=member.byte_offset,
+        source_type=entry.type_name,
+        source_size=entry.size,
     )
 
 

@@ -143,7 +143,9 @@ class TerminalController(Controller):
         self.diag: dict[str, AttrR[Any, Any]] = {
             "AlState": AttrR(Enum(AlStateView), description="AL state"),
             "AlStateText": AttrR(String(), description="AL state and flags"),
-            "LinkOk": AttrR(Bool(), description="Link fine"),
+            "LinkOk": AttrR(
+                Bool(), description="Own link fine (ports B-D: neighbours)"
+            ),
             "LinkState": AttrR(Int(min=0, max=255), description="Link bits"),
             "CrcErrors": AttrR(Int(), description="CRC errors, all ports"),
             "Type": AttrR(
@@ -205,14 +207,15 @@ class TerminalController(Controller):
     async def set_diagnostics(self, state: SlaveState | None, crc: int | None) -> None:
         """Post the master's view of this slave (None: not reported this time).
 
-        A slave out of OP or without link puts only its own points in alarm.
+        A slave out of OP or cut off puts only its own points in alarm; a
+        missing link on its port B, C or D is the neighbour's, not its own.
         """
         health = self.health
         if state is not None:
             await health.post(self.diag["AlState"], al_state_view(state))
             await health.post(self.diag["AlStateText"], al_state_text(state))
             await health.post(self.diag["LinkState"], state.link)
-            await health.post(self.diag["LinkOk"], state.link == 0)
+            await health.post(self.diag["LinkOk"], not state.link_state.own_fault())
             await self._judge(state)
         if crc is not None:
             await health.post(self.diag["CrcErrors"], min(crc, 2**31 - 1))
@@ -221,7 +224,7 @@ class TerminalController(Controller):
         problem = ""
         if state.al_state != AlState.OP:
             problem = f"{self.plan.slave.name} in {al_state_text(state)}"
-        elif state.link != 0:
+        elif state.link_state.own_fault():
             problem = f"{self.plan.slave.name}: link lost (0x{state.link:02X})"
         if problem == self.slave_problem:
             return
