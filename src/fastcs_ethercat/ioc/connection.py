@@ -10,7 +10,7 @@ cycle fail `wake`s the supervisor through it.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
 
 from fastcs_ethercat.ads.client import AdsClient
@@ -30,6 +30,9 @@ class Connection:
     """The supervisor's view of the link (set by the root's reconnection)."""
     wake: Callable[[], None] = field(default=lambda: None)
     """Ask the supervisor to probe now (set by the root's reconnection)."""
+    prepare: Callable[[], Awaitable[None]] | None = None
+    """What must happen once before the first client (the route, when the
+    IOC booted without its target); done by the first `client` call."""
 
     @property
     def state(self) -> LinkState:
@@ -41,6 +44,9 @@ class Connection:
 
     async def client(self, net_id: str, ams_port: int) -> AdsClient:
         """The pool's open client to `net_id:ams_port` (of the moment)."""
+        if self.prepare is not None:
+            await self.prepare()
+            self.prepare = None
         return await self.pool.get(net_id, ams_port)
 
     def check_readable(self) -> None:

@@ -10,6 +10,10 @@ work:
 - the runtime not in RUN: `stopped` once; back in RUN: `resync`;
 - another symbol version (online change): `resync`.
 
+An IOC that booted without its target (from a chain file) starts
+disconnected: it reconnects first. Failed attempts are logged at most once
+per `RECONNECT_LOG_INTERVAL_S`.
+
 A beamline IOC runs for months: nothing here ends except by cancellation.
 """
 
@@ -25,6 +29,7 @@ from enum import StrEnum
 from typing import Final, Protocol
 
 from fastcs_ethercat.ads.constants import AdsState
+from fastcs_ethercat.ads.ratelimit import RateLimitedLog
 
 logger = logging.getLogger(__name__)
 
@@ -34,6 +39,9 @@ PROBE_TIMEOUT_S: Final = 0.5
 to mark every PV INVALID: inside the 1 s issue 5 asks for, while a probe may
 still take half a second on a loaded host before it counts as lost."""
 RECONNECT_TIMEOUT_S: Final = 30.0
+RECONNECT_LOG_INTERVAL_S: Final = 10.0
+"""At most one line per this interval about failed reconnects (an outage of
+a night would otherwise write one every backoff pause)."""
 
 
 class LinkState(StrEnum):
@@ -116,6 +124,7 @@ class Supervisor:
         period_s: float = PROBE_PERIOD_S,
         probe_timeout_s: float = PROBE_TIMEOUT_S,
         backoff: Backoff | None = None,
+        connected: bool = True,
     ) -> None:
         self.probe = probe
         self.link = link
@@ -124,7 +133,12 @@ class Supervisor:
         self.probe_timeout_s = probe_timeout_s
         self.backoff = backoff or Backoff()
         self.stats = SupervisorStats()
+        self._first_contact = not connected
+        if not connected:  # booted without the target: reconnect first
+            self.stats.state = LinkState.DISCONNECTED
+            self.stats.lost_at = time.monotonic()
         self._wake = asyncio.Event()
+        self._reconnect_log = RateLimitedLog(logger, RECONNECT_LOG_INTERVAL_S)
 
     @property
     def state(self) -> LinkState:
@@ -135,6 +149,8 @@ class Supervisor:
         self._wake.set()
 
     async def run(self) -> None:
+        if self.stats.state is LinkState.DISCONNECTED:
+            await self._reconnect()
         while True:
             await self.step()
             self._wake.clear()
@@ -216,7 +232,9 @@ class Supervisor:
                     else type(error).__name__
                 )
                 self.stats.last_error = f"reconnect failed: {text}"
-                logger.info("target: %s", self.stats.last_error)
+                self._reconnect_log.info(
+                    "reconnect", "target: %s (trying again)", self.stats.last_error
+                )
                 continue
             self.stats.reconnects += 1
             self._connected()
@@ -227,6 +245,12 @@ class Supervisor:
         if stats.lost_at:
             stats.last_recovery_s = time.monotonic() - stats.lost_at
         stats.state = LinkState.CONNECTED
+        if self._first_contact:  # booted without it: the first answer
+            self._first_contact = False
+            logger.info(
+                "target answers: polling (%.1f s after start)", stats.last_recovery_s
+            )
+            return
         logger.warning(
             "target back: polling again (%.1f s after the loss)",
             stats.last_recovery_s,
