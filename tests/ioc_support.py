@@ -209,6 +209,31 @@ def parse_fields(text: str) -> dict[str, Any]:
 
 
 IOC_COMMAND: tuple[str, ...] = (sys.executable, "-m", "fastcs_ethercat", "ioc")
+
+
+def read_pvs_by_source(
+    config: Path, env: dict[str, str], chain: Path | None = None
+) -> dict[str, str]:
+    """Source (TwinCAT symbol, `CoE:8000:11`, `ioc`) -> name of its first read
+    PV, from `ioc --list-pvs` (of `chain` without the PLC, when given): tests
+    find PVs by where their values come from, not by a naming pattern."""
+    flags = ["--chain", str(chain)] if chain is not None else []
+    done = subprocess.run(
+        [*IOC_COMMAND, "--config", str(config), *flags, "--list-pvs"],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    found: dict[str, str] = {}
+    for line in done.stdout.splitlines():
+        name, access, _, source = line.split(" ", 3)
+        if access == "r":
+            found.setdefault(source, name)
+    return found
+
+
 SELECTED_COE_OBJECT = "ai_settings_8000"
 """EL3104's `AI Settings` (0x8000): the CoE object test IOCs serve."""
 

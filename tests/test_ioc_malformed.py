@@ -5,8 +5,8 @@ never loads AdsLib's native code.
 The IOC (a subprocess) starts against the simulator through a proxy in this
 process; the proxy then answers every request with bursts of malformed
 frames (`tests.malformed_ads`) until over a thousand went out, then forwards
-again. (The same at start, with the IOC booting against a hostile target,
-needs the IOC to boot without a PLC: issue 11 item 3.)
+again. The same at start: an IOC started while the proxy is hostile (no
+chain to serve meanwhile) keeps trying, and serves once the proxy is good.
 """
 
 from __future__ import annotations
@@ -27,6 +27,7 @@ from tests.ioc_support import (
     caget,
     ioc_env,
     new_token,
+    read_pvs_by_source,
     start_ioc,
     wait_for,
 )
@@ -36,6 +37,7 @@ pytestmark = pytest.mark.e2e
 
 DEMO_CHAIN = REPO_ROOT / "ioc" / "demo-chain.yaml"
 SINE = "ETH1:RIO1:MOD5:AICompactCh1"  # moves all the time
+SINE_SYMBOL = "Term 5 (EL3104).AI Compact Channel 1"
 MALFORMED_FRAMES = 1000
 LOG_LINES_PER_MINUTE = 100
 
@@ -127,3 +129,63 @@ def test_the_ioc_survives_a_hostile_target(tmp_path: Path) -> None:
         f"{proxy.connections} connections"
     )
     assert per_minute < LOG_LINES_PER_MINUTE, "".join(bad_lines[-40:])
+
+
+def test_an_ioc_started_against_a_hostile_target_serves_once_it_turns_good(
+    tmp_path: Path,
+) -> None:
+    token = new_token()
+    env = {**ioc_env(token), "XDG_CACHE_HOME": str(tmp_path / "cache")}
+    prefix = f"HOSTART{token[:6].upper()}"
+    with SimProcess(DEMO_CHAIN, terminals=TERMINALS_DIR, env=env) as sim:
+        hostile = HostileProxy(("127.0.0.1", sim.tcp_port), burst=250)
+        hostile.bad = True
+        with ProxyThread(hostile) as proxy:
+            config = tmp_path / "ioc.yaml"
+            config.write_text(
+                yaml.safe_dump(
+                    {
+                        "prefix": prefix,
+                        "target": f"127.0.0.1:{proxy.port}",
+                        "ams_net_id": sim.net_id,
+                        "ads_timeout_ms": 500,
+                    }
+                )
+            )
+            sine = read_pvs_by_source(config, env, DEMO_CHAIN)[SINE_SYMBOL]
+            started = time.monotonic()
+            ioc = start_ioc([*IOC_COMMAND, "--config", str(config)], prefix, env, token)
+            try:
+                sent = wait_for(
+                    lambda: (
+                        proxy.malformed_sent >= MALFORMED_FRAMES
+                        or ioc.process.poll() is not None
+                    ),
+                    180,
+                )
+                alive_while_bad = ioc.process.poll() is None
+                bad_seconds = time.monotonic() - started
+                bad_lines = drain(ioc)
+                proxy.bad = False
+                ioc.wait_for_line("ioc ready", START_TIMEOUT)
+                moving = wait_for(lambda: _moves(ioc, sine), 30)
+                alive = ioc.process.poll() is None
+            finally:
+                ioc.stop()
+
+    assert sent and proxy.malformed_sent >= MALFORMED_FRAMES, dict(proxy.sent)
+    assert alive_while_bad and alive, "".join(bad_lines[-40:] + ioc.output[-40:])
+    assert moving, "".join(ioc.output[-40:])
+    per_minute = len(bad_lines) * 60 / bad_seconds
+    print(
+        f"\n{proxy.malformed_sent} malformed frames at start in {bad_seconds:.0f} s, "
+        f"{len(bad_lines)} log lines ({per_minute:.0f} a minute)"
+    )
+    assert per_minute < LOG_LINES_PER_MINUTE, "".join(bad_lines[-40:])
+    assert not any("Traceback" in line for line in bad_lines + ioc.output)
+
+
+def _moves(ioc: IocProcess, pv: str) -> bool:
+    first = caget(ioc, pv).get(pv)
+    time.sleep(0.3)
+    return first is not None and caget(ioc, pv).get(pv) != first

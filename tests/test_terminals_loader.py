@@ -110,3 +110,27 @@ def test_registry_refuses_duplicates(terminals_copy: Path, tmp_path: Path) -> No
     write_terminal_file(other / "EL3104.yaml", {"EL3104-COPY": el3104})
     with pytest.raises(UserError, match="has the same identity"):
         load_terminals([analog, other])
+
+
+def test_a_type_may_be_described_at_several_revisions(
+    terminals_copy: Path, tmp_path: Path
+) -> None:
+    el3104 = read_terminal_file(terminals_copy / "EL3104.yaml")["EL3104"]
+    older = el3104.model_copy(deep=True)
+    older.identity.revision_number = 0x00100000
+    other = el3104.model_copy(deep=True)
+    other.identity.product_code = 0x12345678
+    site = tmp_path / "site"
+    site.mkdir()
+    write_terminal_file(site / "EL3104.yaml", {"EL3104": older})
+    registry = load_terminals([site, terminals_copy / "EL3104.yaml"])
+    code = el3104.identity.product_code
+
+    assert registry.get("EL3104").terminal.identity.revision_number == 0x00100000
+    assert len(registry) == 2 and registry.type_names() == ["EL3104"]
+    for revision in (0x00100000, 0x00110000):
+        match = registry.lookup(code, revision)
+        assert match is not None and match.exact and match.revision == revision
+    write_terminal_file(site / "EL3104.yaml", {"EL3104": other})
+    with pytest.raises(UserError, match="with another product code"):
+        load_terminals([site, terminals_copy / "EL3104.yaml"])

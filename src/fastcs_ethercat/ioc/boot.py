@@ -22,9 +22,9 @@ from __future__ import annotations
 import asyncio
 import logging
 import time
-from collections.abc import Awaitable, Callable
+from collections.abc import Callable, Coroutine
 from pathlib import Path
-from typing import Final
+from typing import Any, Final
 
 from fastcs_ethercat.ads.client import AdsError
 from fastcs_ethercat.ads.errors import AdsCodecError
@@ -42,7 +42,7 @@ from fastcs_ethercat.terminals.registry import TerminalRegistry
 
 logger = logging.getLogger(__name__)
 
-PlanSource = Callable[[], Awaitable[tuple[SystemPlan, Connection]]]
+PlanSource = Callable[[], Coroutine[Any, Any, tuple[SystemPlan, Connection]]]
 """What the root serves and how it reaches the target."""
 WAIT_LOG_INTERVAL_S: Final = 10.0
 """At most one line per this interval while waiting for the PLC at start."""
@@ -54,7 +54,7 @@ def live_source(config: IocConfig, registry: TerminalRegistry) -> PlanSource:
 
     async def discover_target() -> tuple[SystemPlan, Connection]:
         started = time.monotonic()
-        logger.info("discovering %s", config.target)
+        logger.debug("discovering %s", config.target)
         net_id = str(await prepare_target(config))
         pool = ClientPool(config.target_host, config.target_port, config.ads_timeout_ms)
         try:
@@ -120,6 +120,7 @@ def boot_source(config: IocConfig, registry: TerminalRegistry) -> PlanSource:
         pauses = WAIT_BACKOFF.pauses()
         waiting = RateLimitedLog(logger, WAIT_LOG_INTERVAL_S)
         started = time.monotonic()
+        logger.info("discovering %s", config.target)
         while True:
             try:
                 return await discover_live()

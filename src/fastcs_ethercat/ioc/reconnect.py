@@ -235,9 +235,15 @@ class Reconnection:
             async with slots:
                 await terminal.refresh_coe()
 
-        await asyncio.gather(
-            *(refresh(t) for t in self.root.terminals() if t.coe_attributes)
-        )
+        terminals = [t for t in self.root.terminals() if t.coe_attributes]
+        started = time.monotonic()
+        await asyncio.gather(*(refresh(t) for t in terminals))
+        if terminals:
+            logger.info(
+                "CoE values of %d terminals read in %.1f s",
+                len(terminals),
+                time.monotonic() - started,
+            )
 
 
 def chain_changes(old: SystemPlan, new: SystemPlan) -> list[str]:

@@ -52,22 +52,27 @@ def variant_of(revision: int) -> int:
 
 
 class TerminalRegistry:
-    """Terminal types by name and identity; duplicates are user errors."""
+    """Terminal types by name and identity; duplicates are user errors.
+
+    A type may be described at several revisions (files of its own, e.g. a
+    site's YAML of an older revision beside the shipped one): `lookup`
+    chooses among all of them; `get` gives the first loaded of the name.
+    """
 
     def __init__(self, items: Iterable[RegisteredTerminal]) -> None:
         self._by_name: dict[str, RegisteredTerminal] = {}
+        self._items: list[RegisteredTerminal] = []
         by_identity: dict[tuple[int, int, int], RegisteredTerminal] = {}
         for item in items:
-            earlier = self._by_name.get(item.type_name)
-            if earlier is not None:
-                raise UserError(
-                    f"terminal type {item.type_name} is also defined in {earlier.path}",
-                    path=item.path,
-                    where=item.type_name,
-                )
             identity = item.terminal.identity
             key = (identity.vendor_id, identity.product_code, identity.revision_number)
             clash = by_identity.get(key)
+            if clash is not None and clash.type_name == item.type_name:
+                raise UserError(
+                    f"terminal type {item.type_name} is also defined in {clash.path}",
+                    path=item.path,
+                    where=item.type_name,
+                )
             if clash is not None:
                 raise UserError(
                     f"{item.type_name} has the same identity (product code "
@@ -76,14 +81,25 @@ class TerminalRegistry:
                     path=item.path,
                     where=item.type_name,
                 )
-            self._by_name[item.type_name] = item
+            earlier = self._by_name.get(item.type_name)
+            if earlier is not None and (
+                earlier.terminal.identity.product_code != identity.product_code
+            ):
+                raise UserError(
+                    f"terminal type {item.type_name} is also defined in "
+                    f"{earlier.path} with another product code",
+                    path=item.path,
+                    where=item.type_name,
+                )
+            self._by_name.setdefault(item.type_name, item)
+            self._items.append(item)
             by_identity[key] = item
 
     def __len__(self) -> int:
-        return len(self._by_name)
+        return len(self._items)
 
     def __iter__(self) -> Iterator[RegisteredTerminal]:
-        return iter(self._by_name.values())
+        return iter(self._items)
 
     def __contains__(self, type_name: object) -> bool:
         return type_name in self._by_name
@@ -101,7 +117,7 @@ class TerminalRegistry:
         """Exact identity, else the nearest revision of the product code."""
         candidates = [
             item
-            for item in self._by_name.values()
+            for item in self._items
             if item.terminal.identity.product_code == product_code
             and (vendor_id is None or item.terminal.identity.vendor_id == vendor_id)
         ]

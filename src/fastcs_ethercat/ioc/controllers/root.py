@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Collection, Sequence
 from dataclasses import dataclass
 from typing import Any, Final
 
@@ -47,11 +47,16 @@ from fastcs_ethercat.ioc.health import COMM, Health
 from fastcs_ethercat.ioc.naming import PvNames, PvRequest, alias_key, plan_pv_names
 from fastcs_ethercat.ioc.plan import MasterPlan, SystemPlan, TerminalPlan
 from fastcs_ethercat.ioc.reconnect import Reconnection
+from fastcs_ethercat.logs import log_at_most
 from fastcs_ethercat.terminals.registry import TerminalRegistry
 
 logger = logging.getLogger(__name__)
 
 STATS_PERIOD_S: Final = 1.0
+WARNINGS_SHOWN: Final = 15
+"""Start-up warnings logged before one line says how many more there are."""
+NAMES_SHOWN: Final = 3
+"""Terminals a folded warning names before it counts the rest."""
 ROOT_LEAVES: Final = (
     "Connected",
     "Target",
@@ -151,8 +156,13 @@ class RootController(Controller):
             time.monotonic() - started,
         )
         shortened = self.names.shortened
-        for warning in self.warnings(with_shortened=False):
-            logger.warning("%s", warning)
+        log_at_most(
+            logger,
+            logging.WARNING,
+            fold_by_terminal(self.warnings(with_shortened=False), self._slave_names()),
+            WARNINGS_SHOWN,
+            "warnings (every one: `ioc --list-pvs`, or at debug level)",
+        )
         for shortening in shortened:  # thousands with every CoE object selected
             logger.debug("PV name shortened: %s", shortening)
         if shortened:
@@ -161,6 +171,9 @@ class RootController(Controller):
                 " or `ioc --list-pvs`)",
                 len(shortened),
             )
+
+    def _slave_names(self) -> set[str]:
+        return {t.slave.name for m in self.plan.masters for t in m.terminals}
 
     def build(self, plan: SystemPlan, connection: Connection) -> None:
         """The attributes of the root and every controller below, for `plan`."""
@@ -263,17 +276,7 @@ class RootController(Controller):
         of SDO uploads (mailbox round trips on a real bus) would hold up the
         start. Until read, each is INVALID (UDF).
         """
-        self.health.publisher.start()
-        coe = [a for t in self.terminals() for a in t.coe_attributes]
-        self.health.mark_invalid(coe, COE_READ, Status.UDF, "not read yet")
         plan = self.plan
-        if plan.offline_from:
-            self.health.mark_invalid(
-                self.target_attributes(),
-                COMM,
-                Status.COMM,
-                f"target not reached since start (served from {plan.offline_from})",
-            )
         logger.info(
             "serving %d PVs of %d terminals on %d master(s)%s",
             self.pv_count,
@@ -281,6 +284,16 @@ class RootController(Controller):
             len(plan.masters),
             " (INVALID until the target answers)" if plan.offline_from else "",
         )
+        self.health.publisher.start()
+        coe = [a for t in self.terminals() for a in t.coe_attributes]
+        self.health.mark_invalid(coe, COE_READ, Status.UDF, "not read yet")
+        if plan.offline_from:
+            self.health.mark_invalid(
+                self.target_attributes(),
+                COMM,
+                Status.COMM,
+                f"target not reached since start (served from {plan.offline_from})",
+            )
         self.reconnection.start()
 
     async def disconnect(self) -> None:
@@ -347,6 +360,37 @@ class RootController(Controller):
         await post(a["SymbolVersion"], live.symbol_version)
         await post(a["DeviceName"], live.device_name)
         await post(a["DeviceVersion"], live.device_version)
+
+
+def fold_by_terminal(warnings: Sequence[str], terminals: Collection[str]) -> list[str]:
+    """One line for what several terminals say alike (`Term 5 (EL3104): X`
+    and `Term 29 (EL3104): X` -> `2 terminals (Term 5 (EL3104), Term 29
+    (EL3104)): X`): a rack repeats its types, and so would its warnings."""
+    by_text: dict[str, list[str]] = {}
+    order: list[tuple[str, str]] = []
+    for warning in warnings:
+        name, colon, text = warning.partition(": ")
+        if not colon or name not in terminals:
+            order.append(("", warning))
+            continue
+        if text not in by_text:
+            by_text[text] = []
+            order.append((text, ""))
+        by_text[text].append(name)
+    folded: list[str] = []
+    for text, warning in order:
+        if not text:
+            folded.append(warning)
+            continue
+        names = by_text[text]
+        if len(names) == 1:
+            folded.append(f"{names[0]}: {text}")
+            continue
+        shown = ", ".join(names[:NAMES_SHOWN])
+        if len(names) > NAMES_SHOWN:
+            shown += f" and {len(names) - NAMES_SHOWN} more"
+        folded.append(f"{len(names)} terminals ({shown}): {text}")
+    return folded
 
 
 def _root_attributes(plan: SystemPlan, target: str) -> dict[str, AttrR[Any, Any]]:
