@@ -9,7 +9,6 @@ import re
 from pathlib import Path
 
 import pytest
-import yaml
 
 from fastcs_ethercat.bench.chains import (
     demo_mix,
@@ -19,7 +18,13 @@ from fastcs_ethercat.bench.chains import (
 )
 from fastcs_ethercat.sim.process import SimProcess
 from tests.conftest import REPO_ROOT, TERMINALS_DIR
-from tests.ioc_support import IOC_COMMAND, ioc_env, new_token, start_ioc
+from tests.ioc_support import (
+    IOC_COMMAND,
+    ioc_env,
+    new_token,
+    start_ioc,
+    write_ioc_config,
+)
 
 pytestmark = [pytest.mark.e2e, pytest.mark.slow]
 
@@ -43,16 +48,8 @@ def test_104_terminals_with_every_coe_object_start_quietly(tmp_path: Path) -> No
     env = {**ioc_env(token), "XDG_CACHE_HOME": str(tmp_path / "cache")}
     prefix = f"BIG{token[:6].upper()}"
     with SimProcess(chain, terminals=terminals, env=env) as sim:
-        config = tmp_path / "ioc.yaml"
-        config.write_text(
-            yaml.safe_dump(
-                {
-                    "prefix": prefix,
-                    "target": sim.pyads_ip,
-                    "ams_net_id": sim.net_id,
-                    "terminal_dirs": [str(terminals)],
-                }
-            )
+        config = write_ioc_config(
+            tmp_path, prefix, sim.pyads_ip, sim.net_id, terminal_dirs=[str(terminals)]
         )
         ioc = start_ioc([*IOC_COMMAND, "--config", str(config)], prefix, env, token)
         try:

@@ -9,11 +9,12 @@ from a naming pattern.
 
 from __future__ import annotations
 
+import contextlib
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-import yaml
 
 from fastcs_ethercat.sim.process import SimProcess
 from tests.conftest import REPO_ROOT, TERMINALS_DIR
@@ -28,29 +29,30 @@ from tests.ioc_support import (
     read_pvs_by_source,
     start_ioc,
     wait_for,
+    write_ioc_config,
 )
 
 pytestmark = pytest.mark.e2e
 
 DEMO_CHAIN = REPO_ROOT / "ioc" / "demo-chain.yaml"
 SINE = "Term 5 (EL3104).AI Compact Channel 1"  # moves all the time
+RAMP = "Term 13 (EL3602).AI Inputs Channel 2.Value"  # moves all the time
+STANDARD = "Term 5 (EL3104).AI Standard Channel 1.Value"
 LIVE_WITHIN_S = 5.0
 """Issue 11: live values within 5 s of the PLC appearing."""
 
 
 def write_config(folder: Path, prefix: str, port: int, **settings: object) -> Path:
-    config = folder / "ioc.yaml"
-    config.write_text(
-        yaml.safe_dump(
-            {
-                "prefix": prefix,
-                "target": f"127.0.0.1:{port}",
-                "ams_net_id": "127.0.0.1.1.1",
-                **settings,
-            }
-        )
+    return write_ioc_config(
+        folder, prefix, f"127.0.0.1:{port}", "127.0.0.1.1.1", **settings
     )
-    return config
+
+
+def everything_said(ioc: IocProcess) -> str:
+    """The IOC's whole output, including what no `wait_for_line` read."""
+    while not ioc.lines.empty():
+        ioc.output.append(ioc.lines.get_nowait())
+    return "".join(ioc.output)
 
 
 def alarm_of(ioc: IocProcess, pv: str) -> str:
@@ -71,43 +73,57 @@ def serve(config: Path, prefix: str, env: dict[str, str], token: str) -> IocProc
     return ioc
 
 
-def live_after_the_plc_appears(
+@contextlib.contextmanager
+def plc_appears(
     ioc: IocProcess, port: int, env: dict[str, str], pv: str
-) -> float:
-    """Start the simulator on `port`; seconds until `pv` moves without alarm."""
+) -> Iterator[float]:
+    """Start the simulator on `port`; yield the seconds until `pv` moved
+    without alarm, while the simulator still runs."""
     with SimProcess(DEMO_CHAIN, terminals=TERMINALS_DIR, port=port, env=env):
         appeared = time.monotonic()
         assert wait_for(lambda: moving_without_alarm(ioc, pv), 30), alarm_of(ioc, pv)
-        return time.monotonic() - appeared
+        yield time.monotonic() - appeared
 
 
 def test_an_ioc_started_without_its_plc_serves_the_configured_chain(
     tmp_path: Path,
 ) -> None:
+    """The configured chain says Term 5 runs Standard; the PLC that comes
+    runs Compact (the demo chain): one line says what differs."""
     token = new_token()
     env = {**ioc_env(token), "XDG_CACHE_HOME": str(tmp_path / "cache")}
     prefix = f"BOOT{token[:6].upper()}"
     port = free_port(tcp=True, udp=False)
-    config = write_config(tmp_path, prefix, port, chain=str(DEMO_CHAIN))
-    sine = read_pvs_by_source(config, env, DEMO_CHAIN)[SINE]
+    chain = tmp_path / "rack.yaml"
+    chain.write_text(
+        DEMO_CHAIN.read_text().replace("pdo_group: Compact", "pdo_group: Standard")
+    )
+    config = write_config(tmp_path, prefix, port, chain=str(chain))
+    names = read_pvs_by_source(config, env, chain)
+    ramp, standard = names[RAMP], names[STANDARD]
 
     ioc = serve(config, prefix, env, token)
     try:
-        invalid = wait_for(lambda: "COMM INVALID" in alarm_of(ioc, sine), 10)
+        invalid = wait_for(lambda: "COMM INVALID" in alarm_of(ioc, ramp), 10)
         connected = caget(ioc, ioc.pv("Connected")).get(ioc.pv("Connected"))
         time.sleep(2)  # retrying: still alive
         alive = ioc.process.poll() is None
-        seconds = live_after_the_plc_appears(ioc, port, env, sine)
+        with plc_appears(ioc, port, env, ramp) as seconds:
+            gone = wait_for(lambda: "STATE INVALID" in alarm_of(ioc, standard), 10)
         still_alive = ioc.process.poll() is None
     finally:
         ioc.stop()
 
-    log = "".join(ioc.output)
+    log = everything_said(ioc)
     print(f"\nlive values {seconds:.1f} s after the simulator appeared")
     assert invalid and connected == "False", log[-3000:]
     assert alive and still_alive, log[-3000:]
-    assert "serving 24 terminals from the chain file" in log
+    assert f"serving 24 terminals from the chain file {chain}" in log
     assert seconds < LIVE_WITHIN_S, log[-3000:]
+    assert gone, log[-3000:]
+    [differs] = [line for line in log.splitlines() if "chain (the live one" in line]
+    assert "served points gone or changed type" in differs
+    assert "live points not served until restart" in differs
     assert "Traceback" not in log
     assert (tmp_path / "cache" / "fastcs-ethercat" / "chains").is_dir()  # kept
 
@@ -132,11 +148,12 @@ def test_an_ioc_started_without_its_plc_serves_the_chain_it_saw_last(
     second = serve(config, prefix, env, token)  # the PLC is gone now
     try:
         invalid = wait_for(lambda: "COMM INVALID" in alarm_of(second, sine), 10)
-        seconds = live_after_the_plc_appears(second, port, env, sine)
+        with plc_appears(second, port, env, sine) as seconds:
+            pass
     finally:
         second.stop()
 
-    log = "".join(second.output)
+    log = everything_said(second)
     print(f"\nlive values {seconds:.1f} s after the simulator appeared")
     assert invalid, log[-3000:]
     assert "from the chain kept from the last start" in log, log[-3000:]

@@ -16,7 +16,6 @@ import time
 from pathlib import Path
 
 import pytest
-import yaml
 
 from fastcs_ethercat.sim.process import SimProcess
 from tests.conftest import REPO_ROOT, TERMINALS_DIR
@@ -30,6 +29,7 @@ from tests.ioc_support import (
     read_pvs_by_source,
     start_ioc,
     wait_for,
+    write_ioc_config,
 )
 from tests.malformed_ads import HostileProxy, ProxyThread
 
@@ -57,11 +57,24 @@ def root(ioc: IocProcess, name: str) -> str:
     return caget(ioc, "-S", pv).get(pv, "")
 
 
-def sine_moves(ioc: IocProcess) -> bool:
-    pv = ioc.pv(SINE)
+def moves(ioc: IocProcess, pv: str) -> bool:
     first = caget(ioc, pv).get(pv)
     time.sleep(0.3)
     return first is not None and caget(ioc, pv).get(pv) != first
+
+
+def sine_moves(ioc: IocProcess) -> bool:
+    return moves(ioc, ioc.pv(SINE))
+
+
+def enough_sent_or_dead(proxy: HostileProxy, ioc: IocProcess) -> bool:
+    """Wait until MALFORMED_FRAMES went out (or the IOC died): whether they did."""
+    return wait_for(
+        lambda: (
+            proxy.malformed_sent >= MALFORMED_FRAMES or ioc.process.poll() is not None
+        ),
+        180,
+    )
 
 
 def test_the_ioc_survives_a_hostile_target(tmp_path: Path) -> None:
@@ -71,16 +84,12 @@ def test_the_ioc_survives_a_hostile_target(tmp_path: Path) -> None:
     with SimProcess(DEMO_CHAIN, terminals=TERMINALS_DIR, env=env) as sim:
         hostile = HostileProxy(("127.0.0.1", sim.tcp_port), burst=100)
         with ProxyThread(hostile) as proxy:
-            config = tmp_path / "ioc.yaml"
-            config.write_text(
-                yaml.safe_dump(
-                    {
-                        "prefix": prefix,
-                        "target": f"127.0.0.1:{proxy.port}",
-                        "ams_net_id": sim.net_id,
-                        "ads_timeout_ms": 500,
-                    }
-                )
+            config = write_ioc_config(
+                tmp_path,
+                prefix,
+                f"127.0.0.1:{proxy.port}",
+                sim.net_id,
+                ads_timeout_ms=500,
             )
             ioc = start_ioc([*IOC_COMMAND, "--config", str(config)], prefix, env, token)
             try:
@@ -93,13 +102,7 @@ def test_the_ioc_survives_a_hostile_target(tmp_path: Path) -> None:
                 started = time.monotonic()
                 proxy.bad = True
                 lost = wait_for(lambda: root(ioc, "Connected") == "False", 20)
-                sent = wait_for(
-                    lambda: (
-                        proxy.malformed_sent >= MALFORMED_FRAMES
-                        or ioc.process.poll() is not None
-                    ),
-                    180,
-                )
+                sent = enough_sent_or_dead(proxy, ioc)
                 alive_while_bad = ioc.process.poll() is None
                 proxy.bad = False
                 bad_seconds = time.monotonic() - started
@@ -141,37 +144,28 @@ def test_an_ioc_started_against_a_hostile_target_serves_once_it_turns_good(
         hostile = HostileProxy(("127.0.0.1", sim.tcp_port), burst=250)
         hostile.bad = True
         with ProxyThread(hostile) as proxy:
-            config = tmp_path / "ioc.yaml"
-            config.write_text(
-                yaml.safe_dump(
-                    {
-                        "prefix": prefix,
-                        "target": f"127.0.0.1:{proxy.port}",
-                        "ams_net_id": sim.net_id,
-                        "ads_timeout_ms": 500,
-                    }
-                )
+            config = write_ioc_config(
+                tmp_path,
+                prefix,
+                f"127.0.0.1:{proxy.port}",
+                sim.net_id,
+                ads_timeout_ms=500,
             )
             sine = read_pvs_by_source(config, env, DEMO_CHAIN)[SINE_SYMBOL]
             started = time.monotonic()
             ioc = start_ioc([*IOC_COMMAND, "--config", str(config)], prefix, env, token)
             try:
-                sent = wait_for(
-                    lambda: (
-                        proxy.malformed_sent >= MALFORMED_FRAMES
-                        or ioc.process.poll() is not None
-                    ),
-                    180,
-                )
+                sent = enough_sent_or_dead(proxy, ioc)
                 alive_while_bad = ioc.process.poll() is None
                 bad_seconds = time.monotonic() - started
                 bad_lines = drain(ioc)
                 proxy.bad = False
                 ioc.wait_for_line("ioc ready", START_TIMEOUT)
-                moving = wait_for(lambda: _moves(ioc, sine), 30)
+                moving = wait_for(lambda: moves(ioc, sine), 30)
                 alive = ioc.process.poll() is None
             finally:
                 ioc.stop()
+            rest = drain(ioc)
 
     assert sent and proxy.malformed_sent >= MALFORMED_FRAMES, dict(proxy.sent)
     assert alive_while_bad and alive, "".join(bad_lines[-40:] + ioc.output[-40:])
@@ -182,10 +176,4 @@ def test_an_ioc_started_against_a_hostile_target_serves_once_it_turns_good(
         f"{len(bad_lines)} log lines ({per_minute:.0f} a minute)"
     )
     assert per_minute < LOG_LINES_PER_MINUTE, "".join(bad_lines[-40:])
-    assert not any("Traceback" in line for line in bad_lines + ioc.output)
-
-
-def _moves(ioc: IocProcess, pv: str) -> bool:
-    first = caget(ioc, pv).get(pv)
-    time.sleep(0.3)
-    return first is not None and caget(ioc, pv).get(pv) != first
+    assert not any("Traceback" in line for line in bad_lines + ioc.output + rest)

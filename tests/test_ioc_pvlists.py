@@ -6,11 +6,9 @@ from __future__ import annotations
 
 import asyncio
 import json
-import subprocess
 from pathlib import Path
 
 import pytest
-import yaml
 
 from fastcs_ethercat.ioc.boot import chain_plan
 from fastcs_ethercat.ioc.clients import ClientPool
@@ -29,7 +27,13 @@ from fastcs_ethercat.sim.chain import load_chain
 from fastcs_ethercat.sim.process import SimProcess
 from fastcs_ethercat.terminals.loader import load_terminals
 from tests.conftest import REPO_ROOT
-from tests.ioc_support import IOC_COMMAND, ioc_env, new_token, terminals_with_coe
+from tests.ioc_support import (
+    ioc_env,
+    list_pvs_text,
+    new_token,
+    terminals_with_coe,
+    write_ioc_config,
+)
 
 DEMO_CHAIN = REPO_ROOT / "ioc" / "demo-chain.yaml"
 POLL_RATE_HZ = 10.0
@@ -116,19 +120,6 @@ def test_the_lists_are_written_into_a_folder(
     assert autosave.read_text() == autosave_text(entries, "LISTS")
 
 
-def _list(config: Path, env: dict[str, str], *flags: str) -> str:
-    done = subprocess.run(
-        [*IOC_COMMAND, "--config", str(config), "--list-pvs", *flags],
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
-    assert done.returncode == 0, done.stderr[-2000:]
-    assert "Traceback" not in done.stderr
-    return done.stdout
-
-
 def _check_against_the_pv_list(text: str, archiver: str, autosave: str) -> None:
     rows = [line.split(" ", 3) for line in text.splitlines()]
     readable = [name for name, access, _, _ in rows if "r" in access]
@@ -149,23 +140,15 @@ def test_the_lists_with_and_without_the_plc_match_the_pv_list(
 ) -> None:
     env = {**ioc_env(new_token()), "XDG_CACHE_HOME": str(tmp_path / "cache")}
     with SimProcess(DEMO_CHAIN, terminals=terminals, env=env) as sim:
-        config = tmp_path / "ioc.yaml"
-        config.write_text(
-            yaml.safe_dump(
-                {
-                    "prefix": "LISTS",
-                    "target": sim.pyads_ip,
-                    "ams_net_id": sim.net_id,
-                    "terminal_dirs": [str(terminals)],
-                }
-            )
+        config = write_ioc_config(
+            tmp_path, "LISTS", sim.pyads_ip, sim.net_id, terminal_dirs=[str(terminals)]
         )
         live = [
-            _list(config, env, "--format", fmt)
+            list_pvs_text(config, env, "--format", fmt)
             for fmt in ("text", "archiver", "autosave")
         ]
     offline = [
-        _list(config, env, "--chain", str(DEMO_CHAIN), "--format", fmt)
+        list_pvs_text(config, env, "--chain", str(DEMO_CHAIN), "--format", fmt)
         for fmt in ("text", "archiver", "autosave")
     ]
 

@@ -14,11 +14,9 @@ from __future__ import annotations
 import asyncio
 import re
 import shutil
-import subprocess
 from pathlib import Path
 
 import pytest
-import yaml
 
 from fastcs_ethercat.ioc.config import IocConfig
 from fastcs_ethercat.ioc.discovery import discover
@@ -35,10 +33,12 @@ from tests.ioc_support import (
     IocProcess,
     caget,
     ioc_env,
+    list_pvs,
     new_token,
     start_ioc,
     terminals_with_coe,
     wait_for,
+    write_ioc_config,
 )
 from tests.revisions_support import OLDER, replace_with_revisions, write_revisions
 
@@ -159,16 +159,12 @@ def test_the_ioc_writes_outputs_and_reads_coe_of_other_revisions(
     env = ioc_env(token)
     prefix = f"REV{token[:6].upper()}"
     with SimProcess(chain, revisions=[shelf], env=env) as sim:
-        config = tmp_path / "ioc.yaml"
-        config.write_text(
-            yaml.safe_dump(
-                {
-                    "prefix": prefix,
-                    "target": sim.pyads_ip,
-                    "ams_net_id": sim.net_id,
-                    "terminal_dirs": [str(ioc_terminals)],
-                }
-            )
+        config = write_ioc_config(
+            tmp_path,
+            prefix,
+            sim.pyads_ip,
+            sim.net_id,
+            terminal_dirs=[str(ioc_terminals)],
         )
         pvs = _pv_list(config, env)
         ioc = start_ioc([*IOC_COMMAND, "--config", str(config)], prefix, env, token)
@@ -186,19 +182,7 @@ def test_the_ioc_writes_outputs_and_reads_coe_of_other_revisions(
 
 def _pv_list(config: Path, env: dict[str, str]) -> dict[str, tuple[str, str]]:
     """PV name -> (access, source), from `ioc --list-pvs`."""
-    done = subprocess.run(
-        [*IOC_COMMAND, "--config", str(config), "--list-pvs"],
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
-    assert done.returncode == 0, done.stderr[-2000:]
-    pvs = {}
-    for line in done.stdout.splitlines():
-        name, access, _, source = line.split(" ", 3)
-        pvs[name] = (access, source)
-    return pvs
+    return {name: (access, source) for name, access, _, source in list_pvs(config, env)}
 
 
 def _named(pvs: dict[str, tuple[str, str]], access: str, source: str) -> str:

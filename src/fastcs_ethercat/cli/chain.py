@@ -19,7 +19,13 @@ from typing import Annotated, Any
 
 import typer
 
-from fastcs_ethercat.cli.options import LogLevelOption, apply_log_level, plain_typer
+from fastcs_ethercat.cli.options import (
+    AmsNetIdOption,
+    LogLevelOption,
+    TargetOption,
+    apply_log_level,
+    plain_typer,
+)
 from fastcs_ethercat.errors import UserError
 
 chain_app = plain_typer("Read a live target's EtherCAT chain into a chain file.")
@@ -36,20 +42,8 @@ def dump_command(
         Path,
         typer.Option("--out", metavar="FILE", help="Chain file to write (YAML)."),
     ],
-    target: Annotated[
-        str | None,
-        typer.Option(
-            "--target", metavar="HOST[:PORT]", help="TwinCAT host[:ADS TCP port]."
-        ),
-    ] = None,
-    ams_net_id: Annotated[
-        str | None,
-        typer.Option(
-            "--ams-net-id",
-            metavar="ID",
-            help="AMS NetId of the target (default: asked over UDP 48899).",
-        ),
-    ] = None,
+    target: TargetOption = None,
+    ams_net_id: AmsNetIdOption = None,
     terminals: Annotated[
         list[Path] | None,
         typer.Option(

@@ -26,7 +26,13 @@ from typing import Annotated
 import typer
 
 from fastcs_ethercat.cli.demo_hints import DemoHints, write_pv_list
-from fastcs_ethercat.cli.options import LogLevelOption, apply_log_level, plain_typer
+from fastcs_ethercat.cli.options import (
+    AmsNetIdOption,
+    LogLevelOption,
+    TargetOption,
+    apply_log_level,
+    plain_typer,
+)
 from fastcs_ethercat.cli.ports import demo_ports
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.ioc.pvlists import PvListFormat, pv_list_text
@@ -56,16 +62,8 @@ def ioc_command(
         str | None,
         typer.Option("--prefix", metavar="P", help="PV prefix (overrides the file)."),
     ] = None,
-    target: Annotated[
-        str | None,
-        typer.Option(
-            "--target", metavar="HOST[:PORT]", help="TwinCAT host[:ADS TCP port]."
-        ),
-    ] = None,
-    ams_net_id: Annotated[
-        str | None,
-        typer.Option("--ams-net-id", metavar="ID", help="AMS NetId of the target."),
-    ] = None,
+    target: TargetOption = None,
+    ams_net_id: AmsNetIdOption = None,
     poll_rate: Annotated[
         float | None, typer.Option("--poll-rate", metavar="HZ", help="Poll rate.")
     ] = None,
@@ -97,6 +95,7 @@ def ioc_command(
         typer.Option(
             "--format",
             case_sensitive=False,
+            metavar="[text|archiver|autosave]",
             help="What --list-pvs prints: the PV list, an Archiver Appliance "
             "archivePV list (JSON) or an autosave request file.",
         ),
