@@ -16,6 +16,7 @@ from typing import Any
 
 import pytest
 
+from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.ioc.boot import boot_source, chain_plan, live_source
 from fastcs_ethercat.ioc.chains import (
     cache_path,
@@ -275,3 +276,27 @@ def test_list_pvs_without_the_plc_fails_in_one_line(
 
     with pytest.raises(TargetError, match="connection refused"):
         asyncio.run(live_source(config, registry)())
+
+
+def test_a_configured_chain_that_does_not_load_stops_every_start(
+    registry: TerminalRegistry, demo_sim: SimulatorThread, tmp_path: Path
+) -> None:
+    """Checked while the PLC answers too: not first found on the day it is away."""
+    broken = tmp_path / "rack.yaml"
+    broken.write_text(DEMO_CHAIN.read_text().replace("type: EL3602", "type: EL9999"))
+    config = config_for(demo_sim.endpoints.tcp_port, chain=broken)
+
+    with pytest.raises(UserError, match=r"rack.yaml:\d+:\d+: .*'EL9999'"):
+        asyncio.run(boot_source(config, registry)())
+
+
+def test_a_cached_chain_of_types_no_longer_known_is_ignored(
+    registry: TerminalRegistry, caplog: pytest.LogCaptureFixture
+) -> None:
+    config = config_for(free_port(tcp=True, udp=False))
+    remember(offline(load_chain(DEMO_CHAIN), registry), config.target)
+    without = TerminalRegistry(t for t in registry if t.type_name != "EL3602")
+
+    with pytest.raises(TimeoutError):  # waits for the PLC instead
+        asyncio.run(asyncio.wait_for(boot_source(config, without)(), 1.0))
+    assert "ignoring the cached chain" in caplog.text

@@ -29,6 +29,7 @@ from typing import Any, Final
 from fastcs_ethercat.ads.client import AdsError
 from fastcs_ethercat.ads.errors import AdsCodecError
 from fastcs_ethercat.ads.ratelimit import RateLimitedLog
+from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.ioc.chains import cache_path, cached_chain
 from fastcs_ethercat.ioc.clients import ClientPool
 from fastcs_ethercat.ioc.config import IocConfig
@@ -38,6 +39,7 @@ from fastcs_ethercat.ioc.plan import SystemPlan
 from fastcs_ethercat.ioc.supervisor import Backoff
 from fastcs_ethercat.ioc.target import TargetError, prepare_target
 from fastcs_ethercat.sim.chain import Chain, load_chain
+from fastcs_ethercat.sim.resolve import resolve_chain
 from fastcs_ethercat.terminals.registry import TerminalRegistry
 
 logger = logging.getLogger(__name__)
@@ -113,10 +115,15 @@ def chain_source(
 
 def boot_source(config: IocConfig, registry: TerminalRegistry) -> PlanSource:
     """The PLC; while it does not answer, the configured or cached chain;
-    with neither, wait for the PLC (see the module's docstring)."""
+    with neither, wait for the PLC (see the module's docstring). A configured
+    chain that does not load stops the IOC at every start, not only on the
+    day the PLC is away."""
     discover_live = live_source(config, registry)
 
     async def boot() -> tuple[SystemPlan, Connection]:
+        configured = (
+            None if config.chain is None else checked_chain(config.chain, registry)
+        )
         pauses = WAIT_BACKOFF.pauses()
         waiting = RateLimitedLog(logger, WAIT_LOG_INTERVAL_S)
         started = time.monotonic()
@@ -126,7 +133,7 @@ def boot_source(config: IocConfig, registry: TerminalRegistry) -> PlanSource:
                 return await discover_live()
             except TargetError as error:
                 why = str(error)
-            offline = await _offline_plan(config, registry, why)
+            offline = await _offline_plan(config, registry, configured, why)
             if offline is not None:
                 return offline
             waiting.warning(
@@ -142,16 +149,32 @@ def boot_source(config: IocConfig, registry: TerminalRegistry) -> PlanSource:
     return boot
 
 
+def checked_chain(path: Path, registry: TerminalRegistry) -> Chain:
+    """The chain file at `path`, its types known to `registry` (else a
+    one-line `UserError` naming the file and line)."""
+    chain = load_chain(path)
+    resolve_chain(chain, registry)
+    return chain
+
+
 async def _offline_plan(
-    config: IocConfig, registry: TerminalRegistry, why: str
+    config: IocConfig,
+    registry: TerminalRegistry,
+    configured: Chain | None,
+    why: str,
 ) -> tuple[SystemPlan, Connection] | None:
     """The configured chain, else the cached one, as a plan to serve now."""
-    if config.chain is not None:
-        chain, origin = load_chain(config.chain), f"the chain file {config.chain}"
+    if configured is not None:
+        chain, origin = configured, f"the chain file {config.chain}"
     else:
         chain = cached_chain(config.target)
         origin = f"the chain kept from the last start ({cache_path(config.target)})"
         if chain is None:
+            return None
+        try:
+            resolve_chain(chain, registry)
+        except UserError as error:  # the terminal YAML changed since
+            logger.warning("ignoring the cached chain: %s", error)
             return None
     plan = await chain_plan(chain, registry, config, origin)
     terminals = sum(len(master.terminals) for master in plan.masters)
