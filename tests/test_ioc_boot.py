@@ -10,6 +10,7 @@ from a naming pattern.
 from __future__ import annotations
 
 import contextlib
+import json
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -25,6 +26,7 @@ from tests.ioc_support import (
     caget,
     free_port,
     ioc_env,
+    list_pvs,
     new_token,
     read_pvs_by_source,
     start_ioc,
@@ -98,12 +100,17 @@ def test_an_ioc_started_without_its_plc_serves_the_configured_chain(
     chain.write_text(
         DEMO_CHAIN.read_text().replace("pdo_group: Compact", "pdo_group: Standard")
     )
-    config = write_config(tmp_path, prefix, port, chain=str(chain))
+    config = write_config(
+        tmp_path, prefix, port, chain=str(chain), pv_lists_dir="lists"
+    )
+    rows = list_pvs(config, env)  # of the configured chain, without the PLC
     names = read_pvs_by_source(config, env, chain)
     ramp, standard = names[RAMP], names[STANDARD]
 
     ioc = serve(config, prefix, env, token)
     try:
+        ioc.wait_for_line("PV lists written", 30)
+        archived = json.loads((tmp_path / "lists" / "archiver.json").read_text())
         invalid = wait_for(lambda: "COMM INVALID" in alarm_of(ioc, ramp), 10)
         connected = caget(ioc, ioc.pv("Connected")).get(ioc.pv("Connected"))
         time.sleep(2)  # retrying: still alive
@@ -121,6 +128,7 @@ def test_an_ioc_started_without_its_plc_serves_the_configured_chain(
     assert f"serving 24 terminals from the chain file {chain}" in log
     assert seconds < LIVE_WITHIN_S, log[-3000:]
     assert gone, log[-3000:]
+    assert [item["pv"] for item in archived] == [r[0] for r in rows if "r" in r[1]]
     [differs] = [line for line in log.splitlines() if "chain (the live one" in line]
     assert "served points gone or changed type" in differs
     assert "live points not served until restart" in differs
