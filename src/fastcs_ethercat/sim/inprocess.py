@@ -56,7 +56,7 @@ class _SimTransport(asyncio.Transport):
 
     def _deliver(self, data: bytes) -> None:
         if not self._closing:
-            self._protocol.data_received(data)  # type: ignore[attr-defined]
+            self._protocol.data_received(data)
 
     def is_closing(self) -> bool:
         return self._closing
