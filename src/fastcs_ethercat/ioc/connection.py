@@ -5,7 +5,8 @@ creates it, its `Reconnection` component ties its state to the supervisor's
 (and reopens the pool), and every
 master and terminal asks it for clients and whether a request may go out.
 Nothing below the root ever calls back up; a master that sees a whole poll
-cycle fail `wake`s the supervisor through it.
+cycle fail `wake`s the supervisor through it, and one whose symbol handles
+went invalid asks it to `resync`.
 """
 
 from __future__ import annotations
@@ -33,6 +34,9 @@ class Connection:
     prepare: Callable[[], Awaitable[None]] | None = None
     """What must happen once before the first client (the route, when the
     IOC booted without its target); done by the first `client` call."""
+    resync: Callable[[str], None] = field(default=lambda why: None)
+    """Ask the supervisor to resolve every symbol again, saying why (a
+    symbol handle went invalid: the table changed, whatever 0xF008 says)."""
 
     @property
     def state(self) -> LinkState:

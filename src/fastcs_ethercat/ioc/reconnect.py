@@ -101,6 +101,7 @@ class Reconnection:
         )
         connection.state_of = lambda: self.supervisor.state
         connection.wake = self.supervisor.poke
+        connection.resync = self.supervisor.request_resync
         self._tasks: list[asyncio.Task[Any]] = []
         self._coe_refresh: asyncio.Task[None] | None = None
 
@@ -112,7 +113,12 @@ class Reconnection:
 
     async def _start(self) -> None:
         if self.connection.connected:
-            await self._start_polling()
+            try:
+                await self._start_polling()
+            except Exception as error:  # e.g. no answer to the handles: resync
+                reason = f"{type(error).__name__}: {error}"
+                logger.warning("polling did not start: %s", reason)
+                self.supervisor.request_resync(f"polling did not start ({reason})")
             self.start_coe_refresh()
         self._tasks.append(asyncio.create_task(self.supervisor.run()))
 

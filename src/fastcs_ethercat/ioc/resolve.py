@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 from collections import defaultdict
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from fastcs_ethercat.ads.client import SymbolTables
 from fastcs_ethercat.ads.constants import IndexGroup
@@ -32,7 +32,7 @@ from fastcs_ethercat.ioc.plan import (
     TerminalPlan,
 )
 from fastcs_ethercat.terminals.model import CoeObject, TerminalType
-from fastcs_ethercat.terminals.names import snake_name
+from fastcs_ethercat.terminals.names import snake_name, take_unique
 from fastcs_ethercat.terminals.registry import RegistryMatch, TerminalRegistry
 from fastcs_ethercat.terminals.symbols import ExpandedSymbol, expanded_symbols
 
@@ -64,20 +64,6 @@ def group_symbols(symbols: Iterable[AdsSymbolEntry]) -> dict[str, list[AdsSymbol
         if dot:
             groups[prefix].append(entry)
     return dict(groups)
-
-
-@dataclass(slots=True)
-class _Names:
-    """Attribute names of one terminal, made unique in a stable order."""
-
-    used: set[str] = field(default_factory=set)
-
-    def take(self, wanted: str) -> str:
-        name, number = wanted, 2
-        while name in self.used:
-            name, number = f"{wanted}_{number}", number + 1
-        self.used.add(name)
-        return name
 
 
 @dataclass(frozen=True, slots=True)
@@ -162,6 +148,8 @@ def _point(
     writable: bool = False,
     description: str = "",
     units: str = "",
+    channel: int | None = None,
+    entry_name: str = "",
 ) -> Point:
     symbol = f"{entry.name}.{member.path}" if member.path else entry.name
     return Point(
@@ -179,6 +167,12 @@ def _point(
         writable=writable,
         description=description,
         units=units,
+        channel=channel,
+        entry_name=entry_name,
+        source=entry.name,
+        source_offset=member.byte_offset,
+        source_type=entry.type_name,
+        source_size=entry.size,
     )
 
 
@@ -308,7 +302,7 @@ def resolve_terminal(
             f"{slave.name}: the PLC runs PDO group {plan.active_group!r}, the "
             f"YAML selects {wanted.name!r}; serving {plan.active_group!r}"
         )
-    names = _Names()
+    names: set[str] = set()
     dropped: list[str] = []
     for symbol in chosen_symbols(terminal, symbols, plan.active_group):
         entry = live.get(symbol.name)
@@ -324,7 +318,8 @@ def resolve_terminal(
         entry = live.get(rest)
         if entry is not None:
             for member in symbol_members(entry, types):
-                plan.points.append(_point(master, entry, member, names.take(attribute)))
+                attribute = take_unique(attribute, names)
+                plan.points.append(_point(master, entry, member, attribute))
     plan.coe = views.coe(terminal)
     return plan
 
@@ -376,7 +371,7 @@ def _yaml_points(
     entry: AdsSymbolEntry,
     symbol: ExpandedSymbol,
     types: Types,
-    names: _Names,
+    names: set[str],
 ) -> list[Point]:
     members = symbol_members(entry, types) or _fallback_members(symbol)
     by_path = {".".join(m.path): m for m in symbol.members}
@@ -400,9 +395,11 @@ def _yaml_points(
                 master,
                 entry,
                 member,
-                names.take(attribute),
+                take_unique(attribute, names),
                 writable=writable,
                 description=(yaml_member.comment or "") if yaml_member else "",
+                channel=symbol.channel,
+                entry_name=member.path or symbol.entry_name,
             )
         )
     return points
@@ -428,12 +425,13 @@ def _live_points(
 ) -> list[Point]:
     """Every member of `entries`, read-only, in name order; `name(rest of
     the symbol's name, member)` names each attribute (made unique)."""
-    names = _Names()
+    names: set[str] = set()
     points: list[Point] = []
     for entry in sorted(entries, key=lambda e: e.name):
         rest = entry.name.partition(".")[2]
         for member in symbol_members(entry, types):
-            points.append(_point(master, entry, member, names.take(name(rest, member))))
+            attribute = take_unique(name(rest, member), names)
+            points.append(_point(master, entry, member, attribute))
     return points
 
 
@@ -459,11 +457,15 @@ def coe_object_points(obj: CoeObject) -> list[CoePoint]:
                 description=obj.name,
                 default=obj.default_value or obj.default_data or "",
                 enum_texts=tuple((e.value, e.text) for e in obj.enum),
+                name=obj.name,
+                object_name=obj.name,
             )
         ]
     return [
         CoePoint(
             attribute=f"{obj.fastcs_name}_{sub.fastcs_name}",
+            name=sub.name,
+            object_name=obj.name,
             index=obj.index,
             subindex=sub.subindex,
             type_name=sub.type_name,

@@ -8,7 +8,9 @@ work:
   with growing pauses until it succeeds (the app closes and reopens its
   clients, discovers again and resumes polling);
 - the runtime not in RUN: `stopped` once; back in RUN: `resync`;
-- another symbol version (online change): `resync`.
+- another symbol version (online change), or a master whose symbol handles
+  went invalid (`request_resync`: the only sign of an online change where
+  the device port does not answer 0xF008): `resync`.
 
 An IOC that booted without its target (from a chain file) starts
 disconnected: it reconnects first. Failed attempts are logged at most once
@@ -42,6 +44,9 @@ RECONNECT_TIMEOUT_S: Final = 30.0
 RECONNECT_LOG_INTERVAL_S: Final = 10.0
 """At most one line per this interval about failed reconnects (an outage of
 a night would otherwise write one every backoff pause)."""
+REQUESTED_RESYNC_EVERY_S: Final = 1.0
+"""Resyncs asked for by the masters come at most this often (a target whose
+handles keep failing must not make the IOC resolve in a loop)."""
 
 
 class LinkState(StrEnum):
@@ -139,6 +144,8 @@ class Supervisor:
             self.stats.lost_at = time.monotonic()
         self._wake = asyncio.Event()
         self._reconnect_log = RateLimitedLog(logger, RECONNECT_LOG_INTERVAL_S)
+        self._resync_wanted = ""
+        self._last_requested = -REQUESTED_RESYNC_EVERY_S
 
     @property
     def state(self) -> LinkState:
@@ -146,6 +153,13 @@ class Supervisor:
 
     def poke(self) -> None:
         """Probe now (a poll cycle failed as a whole)."""
+        self._wake.set()
+
+    def request_resync(self, why: str) -> None:
+        """Resolve every symbol again at the next probe (within
+        REQUESTED_RESYNC_EVERY_S of the last such request)."""
+        if not self._resync_wanted:
+            self._resync_wanted = why
         self._wake.set()
 
     async def run(self) -> None:
@@ -193,8 +207,14 @@ class Supervisor:
             await self._resync(
                 f"symbol version {self.symbol_version} -> {answer.symbol_version}"
             )
+        elif self._resync_wanted:
+            now = time.monotonic()
+            if now - self._last_requested >= REQUESTED_RESYNC_EVERY_S:
+                self._last_requested = now
+                await self._resync(self._resync_wanted)
 
     async def _resync(self, why: str) -> None:
+        self._resync_wanted = ""
         logger.warning("target: %s: resolving every symbol again", why)
         self.stats.state = LinkState.RESYNCING
         try:
@@ -237,6 +257,7 @@ class Supervisor:
                 )
                 continue
             self.stats.reconnects += 1
+            self._resync_wanted = ""  # the reconnect resolved every symbol
             self._connected()
             return
 

@@ -44,7 +44,13 @@ from fastcs_ethercat.ioc.controllers.tree import (
 )
 from fastcs_ethercat.ioc.datatypes import ExactFloat
 from fastcs_ethercat.ioc.health import COMM, Health
-from fastcs_ethercat.ioc.naming import PvNames, PvRequest, alias_key, plan_pv_names
+from fastcs_ethercat.ioc.naming import (
+    MAX_PV_LENGTH,
+    PvNames,
+    PvRequest,
+    alias_key,
+    plan_pv_names,
+)
 from fastcs_ethercat.ioc.plan import MasterPlan, SystemPlan, TerminalPlan
 from fastcs_ethercat.ioc.reconnect import Reconnection
 from fastcs_ethercat.logs import log_at_most
@@ -155,22 +161,13 @@ class RootController(Controller):
             self.pv_count,
             time.monotonic() - started,
         )
-        shortened = self.names.shortened
         log_at_most(
             logger,
             logging.WARNING,
-            fold_by_terminal(self.warnings(with_shortened=False), self._slave_names()),
+            fold_by_terminal(self.warnings(), self._slave_names()),
             WARNINGS_SHOWN,
             "warnings (every one: `ioc --list-pvs`, or at debug level)",
         )
-        for shortening in shortened:  # thousands with every CoE object selected
-            logger.debug("PV name shortened: %s", shortening)
-        if shortened:
-            logger.warning(
-                "%d PV names shortened to fit 60 characters (details at debug level,"
-                " or `ioc --list-pvs`)",
-                len(shortened),
-            )
 
     def _slave_names(self) -> set[str]:
         return {t.slave.name for m in self.plan.masters for t in m.terminals}
@@ -182,6 +179,8 @@ class RootController(Controller):
         self._names = names = plan_pv_names(
             config.prefix, pv_requests(plan, ROOT_LEAVES), config.pv_aliases
         )
+        for shortening in names.shortened:  # thousands with every CoE object
+            logger.debug("PV name shortened: %s", shortening)
         self.attrs = _root_attributes(plan, config.target)
         for leaf, attr in self.attrs.items():
             self.add_attribute(names.leaves[PvRequest((), leaf)], attr)
@@ -249,8 +248,9 @@ class RootController(Controller):
                 found += terminal.unserved
         return found
 
-    def warnings(self, *, with_shortened: bool = True) -> list[str]:
-        """Everything a user should know about: nothing is dropped silently."""
+    def warnings(self) -> list[str]:
+        """Everything a user should know about: nothing is dropped silently
+        (shortened names in one line, each at debug level)."""
         plan = self.plan
         found = list(plan.warnings)
         for master in plan.masters:
@@ -261,8 +261,13 @@ class RootController(Controller):
                     else f"{terminal.slave.name}: {w}"
                     for w in terminal.warnings
                 ]
-        if with_shortened:
-            found += [f"PV name shortened: {s}" for s in self.names.shortened]
+        if shortened := self.names.shortened:
+            hashed = sum(shortening.hashed for shortening in shortened)
+            found.append(
+                f"{len(shortened)} PV name segments shortened to fit"
+                f" {MAX_PV_LENGTH} characters ({hashed} cut and given a hash);"
+                " each is logged at debug level"
+            )
         found += [f"alias matches nothing: {k}" for k in self.names.unused_aliases]
         found += [f"no PV for {src}: {why}" for src, why in self.unserved_points()]
         return list(dict.fromkeys(found))
