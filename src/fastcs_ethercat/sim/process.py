@@ -40,6 +40,7 @@ class SimProcess:
         chain: Path | str,
         *,
         terminals: Path | str | None = None,
+        revisions: Sequence[Path | str] = (),
         seed: int | None = None,
         host: str = "127.0.0.1",
         port: int = 0,
@@ -67,6 +68,8 @@ class SimProcess:
         ]
         if terminals is not None:
             self.args += ["--terminals", str(terminals)]
+        for source in revisions:
+            self.args += ["--revisions", str(source)]
         if seed is not None:
             self.args += ["--seed", str(seed)]
         self.args += list(extra_args)
