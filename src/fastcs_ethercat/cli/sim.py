@@ -7,6 +7,7 @@ starts), with the same one-line handling of user errors as the main CLI.
 from __future__ import annotations
 
 import asyncio
+import logging
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -17,6 +18,8 @@ from fastcs_ethercat.cli.options import LogLevelOption, apply_log_level, plain_t
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.logs import LogLevel, setup_logging
 from fastcs_ethercat.shipped import BUILTIN_TERMINALS_DIR
+
+log = logging.getLogger("fastcs_ethercat.sim")
 
 SIM_HELP = "Run a simulated TwinCAT system with EtherCAT masters that speaks ADS."
 
@@ -46,6 +49,16 @@ def sim_command(
             "--terminals",
             metavar="DIR",
             help="Directory of terminal YAML (default: the shipped types).",
+        ),
+    ] = None,
+    revisions: Annotated[
+        list[Path] | None,
+        typer.Option(
+            "--revisions",
+            metavar="DIR",
+            help="Terminal YAML of other revisions (files or directories; "
+            "repeatable): a slave whose chain entry gives such a revision is "
+            "played from it.",
         ),
     ] = None,
     host: Annotated[
@@ -92,10 +105,18 @@ def sim_command(
     apply_log_level(log_level)
 
     from fastcs_ethercat.sim.chain import load_chain
+    from fastcs_ethercat.sim.resolve import load_revisions
     from fastcs_ethercat.sim.runner import SimulatorConfig, serve
     from fastcs_ethercat.sim.target import SimTarget
 
-    target = SimTarget.from_chain(load_chain(chain), terminals, seed=seed)
+    target = SimTarget.from_chain(
+        load_chain(chain),
+        terminals,
+        seed=seed,
+        revisions=load_revisions(revisions) if revisions else None,
+    )
+    for note in target.notes:
+        log.warning("%s", note)
     config = SimulatorConfig(
         host=host,
         port=port,

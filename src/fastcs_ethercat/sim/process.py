@@ -40,6 +40,7 @@ class SimProcess(ChildProcess):
         chain: Path | str,
         *,
         terminals: Path | str | None = None,
+        revisions: Sequence[Path | str] = (),
         seed: int | None = None,
         host: str = "127.0.0.1",
         port: int = 0,
@@ -67,6 +68,8 @@ class SimProcess(ChildProcess):
         ]
         if terminals is not None:
             args += ["--terminals", str(terminals)]
+        for source in revisions:
+            args += ["--revisions", str(source)]
         if seed is not None:
             args += ["--seed", str(seed)]
         super().__init__([*args, *extra_args], "sim", env=env, stdin_pipe=True)
