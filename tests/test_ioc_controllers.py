@@ -44,6 +44,7 @@ from fastcs_ethercat.ioc.plan import (
     SystemPlan,
     TerminalPlan,
 )
+from fastcs_ethercat.terminals.meaning import Scaling
 
 MASTER = "Device 1 (EtherCAT)"
 COUPLER = "Term 1 (EK1100)"
@@ -67,7 +68,7 @@ def _point(symbol: str, type_name: str, **extra: Any) -> Point:
 
 
 ANALOG_POINTS = [
-    _point(f"{ANALOG}.AI Standard Channel 1.Value", "INT", units="V"),
+    _point(f"{ANALOG}.AI Standard Channel 1.Value", "INT", scaling=Scaling(unit="V")),
     _point(
         f"{ANALOG}.AI Standard Channel 1.Status.Overrange", "BIT", kind=PointKind.BIT
     ),

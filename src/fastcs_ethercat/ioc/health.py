@@ -10,13 +10,17 @@ and published when the last reason goes, followed by `clear_alarm`.
 Reasons that a fresh value disproves (`FRESH`: the read failed, the target
 was unreachable) go by themselves when the poller hands on a new value;
 the others (a terminal's state, a chain change) only by `mark_ok`.
+
+An attribute may have followers (`follow`): attributes that show a value
+made from each of its values (a scaled value's raw count and engineering
+value come from one read) and share its every alarm.
 """
 
 from __future__ import annotations
 
 import asyncio
 import logging
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from typing import Any, Final
 
@@ -36,6 +40,10 @@ FRESH: Final = frozenset({COMM, READ})
 """Reasons a freshly read value proves wrong."""
 
 
+Convert = Callable[[Any], Any]
+"""A leader's value -> its follower's value."""
+
+
 @dataclass(frozen=True)
 class Reason:
     """Why one attribute is invalid: an alarm status and a text."""
@@ -52,10 +60,27 @@ class Health:
         self._reasons: dict[int, dict[str, Reason]] = {}
         self._attributes: dict[int, Attribute[Any, Any]] = {}
         self._held: dict[int, tuple[Any, float | None]] = {}
+        self._followers: dict[int, list[tuple[AttrR[Any, Any], Convert]]] = {}
         self.published = 0
         """Alarm changes published (for tests and statistics)."""
         self.failures = 0
         """Alarm publications that raised (logged, never propagated)."""
+
+    def follow(
+        self, leader: Attribute[Any, Any], follower: AttrR[Any, Any], convert: Convert
+    ) -> None:
+        """`follower` gets `convert(value)` of every value posted for
+        `leader`, at its time, and every alarm reason `leader` gets."""
+        self._followers.setdefault(id(leader), []).append((follower, convert))
+
+    def _with_followers(
+        self, attributes: Iterable[Attribute[Any, Any]]
+    ) -> Iterator[Attribute[Any, Any]]:
+        followers = self._followers
+        for attribute in attributes:
+            yield attribute
+            for follower, _ in followers.get(id(attribute), ()):
+                yield follower
 
     def is_invalid(self, attribute: Attribute[Any, Any]) -> bool:
         return bool(self._reasons.get(id(attribute)))
@@ -76,7 +101,7 @@ class Health:
     ) -> None:
         """Put `attributes` into INVALID alarm for `reason` (idempotent)."""
         entry = Reason(status, message)
-        for attribute in attributes:
+        for attribute in self._with_followers(attributes):
             key = id(attribute)
             reasons = self._reasons.setdefault(key, {})
             self._attributes[key] = attribute
@@ -89,29 +114,33 @@ class Health:
         self, attributes: Iterable[Attribute[Any, Any]], reason: str
     ) -> None:
         """Drop `reason`; an attribute with no reason left is valid again."""
-        for attribute in attributes:
+        for attribute in list(self._with_followers(attributes)):
             await self._drop(attribute, {reason})
 
     async def post(
         self, attribute: AttrR[Any, Any], value: Any, stamp: float | None = None
     ) -> None:
         """A fresh value read at `stamp`: publish it, unless the attribute
-        stays in alarm."""
+        stays in alarm; then its followers' values."""
         key = id(attribute)
         if key in self._reasons:
             self._held[key] = (value, stamp)
             await self._drop(attribute, FRESH)
-            return
-        await self.publisher.publish(attribute, value, stamp)
+        else:
+            await self.publisher.publish(attribute, value, stamp)
+        followers = self._followers.get(key)
+        if followers is not None:
+            for follower, convert in followers:
+                await self.post(follower, convert(value), stamp)
 
     def write_failed(self, attribute: Attribute[Any, Any], message: str) -> None:
         """A write the target refused: alarm once FastCS has failed the put
         (it raises the record to MAJOR itself, which would hide INVALID);
         the next value clears it."""
-        if self.is_invalid(attribute):
-            return
         reason = Reason(Status.WRITE, message)
-        asyncio.get_running_loop().call_soon(self._publish, attribute, reason)
+        for written in self._with_followers([attribute]):
+            if not self.is_invalid(written):
+                asyncio.get_running_loop().call_soon(self._publish, written, reason)
 
     async def _drop(self, attribute: Attribute[Any, Any], gone: Iterable[str]) -> None:
         key = id(attribute)

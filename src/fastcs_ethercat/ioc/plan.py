@@ -14,6 +14,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from enum import Enum
 
+from fastcs_ethercat.terminals.meaning import Scaling
+
 
 class PointKind(Enum):
     """How a point's value sits in the bytes of its symbol."""
@@ -46,9 +48,10 @@ class Point:
     bit_size: int = 0
     length: int = 1  # elements, for ARRAY
     writable: bool = False  # an RxPDO output
-    description: str = ""
-    units: str = ""
+    description: str = ""  # DESC: from the ESI's names, within 40 characters
     enum_texts: tuple[tuple[int, str], ...] = ()
+    scaling: Scaling | None = None  # engineering units (terminals.meaning)
+    severity: int = 0  # EPICS alarm severity while a status bit/field is set
 
 
 @dataclass(frozen=True, slots=True)
@@ -64,6 +67,7 @@ class CoePoint:
     description: str = ""
     default: str = ""
     enum_texts: tuple[tuple[int, str], ...] = ()
+    units: str = ""  # EGU, from the ESI's unit code
 
 
 @dataclass(frozen=True, slots=True)

@@ -28,10 +28,21 @@ from fastcs_ethercat.ioc.plan import (
     SlaveInfo,
     TerminalPlan,
 )
+from fastcs_ethercat.terminals.meaning import (
+    SEVERITY_LEVELS,
+    Scaling,
+    coe_unit,
+    describe,
+    severity_of_name,
+)
 from fastcs_ethercat.terminals.model import CoeObject, TerminalType
 from fastcs_ethercat.terminals.names import snake_name
 from fastcs_ethercat.terminals.registry import TerminalRegistry
-from fastcs_ethercat.terminals.symbols import ExpandedSymbol, expanded_symbols
+from fastcs_ethercat.terminals.symbols import (
+    ExpandedMember,
+    ExpandedSymbol,
+    expanded_symbols,
+)
 
 BIT_GROUPS = frozenset(
     {IndexGroup.IO_IMAGE_RW_INPUT_BITS, IndexGroup.IO_IMAGE_RW_OUTPUT_BITS}
@@ -156,7 +167,8 @@ def _point(
     *,
     writable: bool = False,
     description: str = "",
-    units: str = "",
+    scaling: Scaling | None = None,
+    severity: int = 0,
 ) -> Point:
     symbol = f"{entry.name}.{member.path}" if member.path else entry.name
     return Point(
@@ -173,7 +185,26 @@ def _point(
         length=member.length,
         writable=writable,
         description=description,
-        units=units,
+        scaling=scaling,
+        severity=severity,
+    )
+
+
+def _live_point(
+    master: str, entry: AdsSymbolEntry, member: _Member, attribute: str, kind: str
+) -> Point:
+    """A point of a symbol no YAML describes (runtime, master, unknown
+    terminal): its DESC and severity from its names (read-only, so nothing
+    here is an output)."""
+    rest = entry.name.partition(".")[2] or entry.name
+    severity = severity_of_name(member.path or rest)
+    return _point(
+        master,
+        entry,
+        member,
+        attribute,
+        description=describe(kind or None, rest, member.path or None),
+        severity=SEVERITY_LEVELS[severity],
     )
 
 
@@ -280,7 +311,7 @@ def resolve_terminal(
     match = registry.lookup(slave.product_code, slave.revision, slave.vendor_id)
     if match is None:
         plan = TerminalPlan(slave=slave, terminal_type=None)
-        plan.points = generic_points(master, entries, types)
+        plan.points = generic_points(master, entries, types, slave.type_name)
         if entries:
             plan.warnings.append(
                 f"{slave.name}: no terminal YAML for product code "
@@ -314,12 +345,18 @@ def resolve_terminal(
         if entry is None:
             plan.warnings.append(f"{slave.name}: no live symbol {symbol.name!r}")
             continue
-        plan.points.extend(_yaml_points(master, entry, symbol, types, names))
+        plan.points.extend(
+            _yaml_points(master, entry, symbol, types, names, match.type_name)
+        )
     for rest, attribute in RUNTIME_ATTRIBUTES.items():
         entry = live.get(rest)
         if entry is not None:
             for member in symbol_members(entry, types):
-                plan.points.append(_point(master, entry, member, names.take(attribute)))
+                plan.points.append(
+                    _live_point(
+                        master, entry, member, names.take(attribute), match.type_name
+                    )
+                )
     plan.coe = views.coe(terminal)
     return plan
 
@@ -330,10 +367,13 @@ def _yaml_points(
     symbol: ExpandedSymbol,
     types: Types,
     names: _Names,
+    type_name: str,
 ) -> list[Point]:
     members = symbol_members(entry, types) or _fallback_members(symbol)
     by_path = {".".join(m.path): m for m in symbol.members}
     by_last = {m.path[-1]: m for m in symbol.members}
+    if len(symbol.members) == 1:  # a one-entry PDO is a symbol of the entry's type
+        by_path[""] = symbol.members[0]
     writable = symbol.direction == "output"
     points: list[Point] = []
     for member in members:
@@ -355,14 +395,32 @@ def _yaml_points(
                 member,
                 names.take(attribute),
                 writable=writable,
-                description=(yaml_member.comment or "") if yaml_member else "",
+                description=describe(
+                    type_name,
+                    symbol.name,
+                    yaml_member.name if yaml_member else member.path or None,
+                ),
+                scaling=_served_scaling(yaml_member, member),
+                severity=SEVERITY_LEVELS[yaml_member.severity] if yaml_member else 0,
             )
         )
     return points
 
 
+def _served_scaling(
+    yaml_member: ExpandedMember | None, member: _Member
+) -> Scaling | None:
+    """The member's scaling where its value can carry one: a number or an
+    array of numbers, not a status bit."""
+    if yaml_member is None or yaml_member.scaling is None:
+        return None
+    if member.kind in (PointKind.BIT, PointKind.BITS):
+        return None
+    return yaml_member.scaling
+
+
 def generic_points(
-    master: str, entries: Sequence[AdsSymbolEntry], types: Types
+    master: str, entries: Sequence[AdsSymbolEntry], types: Types, kind: str = ""
 ) -> list[Point]:
     """Every live symbol of an unknown terminal, read-only, in name order."""
 
@@ -370,7 +428,7 @@ def generic_points(
         base = RUNTIME_ATTRIBUTES.get(rest) or snake_case(rest)
         return f"{base}_{snake_case(member.path)}" if member.path else base
 
-    return _live_points(master, entries, types, name)
+    return _live_points(master, entries, types, name, kind)
 
 
 def _live_points(
@@ -378,15 +436,18 @@ def _live_points(
     entries: Sequence[AdsSymbolEntry],
     types: Types,
     name: Callable[[str, _Member], str],
+    kind: str = "",
 ) -> list[Point]:
     """Every member of `entries`, read-only, in name order; `name(rest of
-    the symbol's name, member)` names each attribute (made unique)."""
+    the symbol's name, member)` names each attribute (made unique); `kind`
+    (the slave's type) starts their descriptions."""
     names = _Names()
     points: list[Point] = []
     for entry in sorted(entries, key=lambda e: e.name):
         rest = entry.name.partition(".")[2]
         for member in symbol_members(entry, types):
-            points.append(_point(master, entry, member, names.take(name(rest, member))))
+            attribute = names.take(name(rest, member))
+            points.append(_live_point(master, entry, member, attribute, kind))
     return points
 
 
@@ -412,6 +473,7 @@ def coe_object_points(obj: CoeObject) -> list[CoePoint]:
                 description=obj.name,
                 default=obj.default_value or obj.default_data or "",
                 enum_texts=tuple((e.value, e.text) for e in obj.enum),
+                units=coe_unit(obj.unit),
             )
         ]
     return [
@@ -425,6 +487,7 @@ def coe_object_points(obj: CoeObject) -> list[CoePoint]:
             description=f"{obj.name}: {sub.name}",
             default=sub.default_value or sub.default_data or "",
             enum_texts=tuple((e.value, e.text) for e in sub.enum),
+            units=coe_unit(sub.unit or obj.unit),
         )
         for sub in obj.sub_items
         if sub.selected

@@ -29,7 +29,7 @@ from typing import Any, Final
 
 from fastcs.attributes import AttrR
 from fastcs.controllers import Controller
-from fastcs.datatypes import Bool, Int, String
+from fastcs.datatypes import Int, String
 from fastcs.methods import scan
 
 from fastcs_ethercat.ads.client import AdsError, unreachable
@@ -55,8 +55,13 @@ from fastcs_ethercat.ioc.attributes import (
 )
 from fastcs_ethercat.ioc.connection import Connection
 from fastcs_ethercat.ioc.controllers.post import post
-from fastcs_ethercat.ioc.controllers.terminal import TerminalController
-from fastcs_ethercat.ioc.datatypes import IntegralFloat
+from fastcs_ethercat.ioc.controllers.terminal import (
+    AL_STATE_SEVERITIES,
+    AlStateView,
+    TerminalController,
+    al_state_view,
+)
+from fastcs_ethercat.ioc.datatypes import AlarmBool, IntegralFloat, alarm_enum
 from fastcs_ethercat.ioc.health import COMM, READ, Health
 from fastcs_ethercat.ioc.plan import MasterPlan, Point, TerminalPlan
 from fastcs_ethercat.ioc.poller import Poller, PollStats, write_point
@@ -196,14 +201,19 @@ class MasterController(Controller):
             "NetId": AttrR(
                 String(), initial_value=plan.net_id, description="Master's AMS NetId"
             ),
-            "State": AttrR(Int(), description="EtherCAT master state"),
+            "State": AttrR(
+                alarm_enum(AlStateView, AL_STATE_SEVERITIES),
+                description="EtherCAT master state",
+            ),
             "SlaveCount": AttrR(Int(), description="Slaves the master sees"),
             "ExpectedSlaves": AttrR(
                 Int(),
                 initial_value=len(plan.terminals),
                 description="Slaves found at start",
             ),
-            "Online": AttrR(Bool(), description="Master diagnostics answer"),
+            "Online": AttrR(
+                AlarmBool(severities=(2, 0)), description="Master diagnostics answer"
+            ),
             "CyclicFrames": AttrR(IntegralFloat(), description="Cyclic frames"),
             "CyclicLost": AttrR(IntegralFloat(), description="Lost cyclic frames"),
             "AcyclicFrames": AttrR(IntegralFloat(), description="Acyclic frames"),
@@ -396,8 +406,8 @@ class MasterController(Controller):
         frames = status.frames
         a = self.attrs
         fresh = self.health.post
-        await post(a["Online"], True)
-        await fresh(a["State"], status.state)
+        await fresh(a["Online"], True)
+        await fresh(a["State"], master_state_view(status.state))
         await fresh(a["SlaveCount"], status.slave_count)
         await fresh(a["CyclicFrames"], frames.cyclic_sent)
         await fresh(a["CyclicLost"], frames.cyclic_lost)
@@ -430,9 +440,14 @@ class MasterController(Controller):
 
     async def _safe_post(self, leaf: str, value: Any) -> None:
         try:
-            await post(self.attrs[leaf], value)
+            await self.health.post(self.attrs[leaf], value)
         except Exception:
             self.failures += 1
+
+
+def master_state_view(state: int) -> AlStateView:
+    """The master's state word as the states a slave reports (OP ...)."""
+    return al_state_view(SlaveState(state & 0xFF))
 
 
 def _same_shape(old: Point, new: Point) -> bool:

@@ -20,9 +20,10 @@ from typing import Any, Final
 
 from fastcs.attributes import AttrR
 from fastcs.controllers import Controller
-from fastcs.datatypes import Bool, Int, String
+from fastcs.datatypes import Int, String
 from fastcs.methods import scan
 
+from fastcs_ethercat import __version__
 from fastcs_ethercat.ioc.alarms import Status
 from fastcs_ethercat.ioc.config import IocConfig
 from fastcs_ethercat.ioc.connection import Connection
@@ -36,16 +37,26 @@ from fastcs_ethercat.ioc.controllers.tree import (
     pv_requests,
     slave_path,
 )
-from fastcs_ethercat.ioc.datatypes import ExactFloat
+from fastcs_ethercat.ioc.datatypes import AlarmBool, ExactFloat
 from fastcs_ethercat.ioc.health import Health
 from fastcs_ethercat.ioc.naming import PvNames, PvRequest, alias_key, plan_pv_names
 from fastcs_ethercat.ioc.plan import MasterPlan, SystemPlan, TerminalPlan
+from fastcs_ethercat.ioc.process_stats import ProcessStats
 from fastcs_ethercat.ioc.reconnect import Reconnection
 from fastcs_ethercat.terminals.registry import TerminalRegistry
 
 logger = logging.getLogger(__name__)
 
 STATS_PERIOD_S: Final = 1.0
+PROCESS_LEAVES: Final = (
+    "Version",
+    "StartTime",
+    "Uptime",
+    "CpuLoad",
+    "MemoryUsed",
+    "PollOverruns",
+)
+"""The IOC process's health (what devIocStats gives a C IOC)."""
 ROOT_LEAVES: Final = (
     "Connected",
     "Target",
@@ -67,6 +78,7 @@ ROOT_LEAVES: Final = (
     "LastRecovery",
     "ChainChanges",
     "InvalidPvs",
+    *PROCESS_LEAVES,
 )
 
 PlanSource = Callable[[], Awaitable[tuple[SystemPlan, Connection]]]
@@ -113,6 +125,7 @@ class RootController(Controller):
         self.pv_count = 0
         self.unserved = 0
         self.rates = RateTracker()
+        self.process = ProcessStats()
         self._plan: SystemPlan | None = None
         self._names: PvNames | None = None
         self._reconnection: Reconnection | None = None
@@ -166,7 +179,7 @@ class RootController(Controller):
         self._names = names = plan_pv_names(
             config.prefix, pv_requests(plan, ROOT_LEAVES), config.pv_aliases
         )
-        self.attrs = _root_attributes(plan, config.target)
+        self.attrs = _root_attributes(plan, config.target, self.process)
         for leaf, attr in self.attrs.items():
             self.add_attribute(names.leaves[PvRequest((), leaf)], attr)
         self.masters = build_masters(
@@ -272,7 +285,7 @@ class RootController(Controller):
         """Publish a change of the link at once, not at the next scan."""
         try:
             a = self.attrs
-            await post(a["Connected"], state == "CONNECTED")
+            await self.health.post(a["Connected"], state == "CONNECTED")
             await post(a["ConnectionState"], state)
             if error:
                 await post(a["LastError"], error[:200])
@@ -305,7 +318,7 @@ class RootController(Controller):
         a = self.attrs
         await post(a["PvCount"], self.pv_count)
         await post(a["Unserved"], self.unserved)
-        await post(
+        await self.health.post(
             a["Connected"],
             connected and bool(stats) and all(s.cycles > 0 for s in stats),
         )
@@ -324,12 +337,21 @@ class RootController(Controller):
         await post(a["ChainChanges"], self.reconnection.chain_changes[:200])
         await post(a["InvalidPvs"], min(self.health.invalid_count, 2**31 - 1))
         await post(a["SymbolVersion"], self.reconnection.live.symbol_version)
+        sample = self.process.sample()
+        await post(a["Uptime"], sample.uptime_s)
+        await post(a["CpuLoad"], sample.cpu_percent)
+        await post(a["MemoryUsed"], sample.memory_mib)
+        await post(a["PollOverruns"], min(sum(s.overruns for s in stats), 2**31 - 1))
 
 
-def _root_attributes(plan: SystemPlan, target: str) -> dict[str, AttrR[Any, Any]]:
+def _root_attributes(
+    plan: SystemPlan, target: str, process: ProcessStats
+) -> dict[str, AttrR[Any, Any]]:
     terminals = sum(len(master.terminals) for master in plan.masters)
     return {
-        "Connected": AttrR(Bool(), description="Polling the target"),
+        "Connected": AttrR(
+            AlarmBool(severities=(2, 0)), description="Polling the target"
+        ),
         "Target": _fixed(String(), target, "ADS host[:port]"),
         "NetId": _fixed(String(), plan.net_id, "AMS NetId of the target"),
         "DeviceName": _fixed(String(), plan.device_name, "TwinCAT device name"),
@@ -357,6 +379,20 @@ def _root_attributes(plan: SystemPlan, target: str) -> dict[str, AttrR[Any, Any]
         ),
         "ChainChanges": AttrR(String(), description="Chain change at reconnect"),
         "InvalidPvs": AttrR(Int(), description="Attributes in INVALID alarm"),
+        "Version": _fixed(String(), __version__, "fastcs-ethercat version"),
+        "StartTime": _fixed(String(), process.start_text(), "IOC start (local time)"),
+        "Uptime": AttrR(
+            ExactFloat(units="s", prec=0), description="Seconds since IOC start"
+        ),
+        "CpuLoad": AttrR(
+            ExactFloat(units="%", prec=1), description="IOC CPU, % of one core"
+        ),
+        "MemoryUsed": AttrR(
+            ExactFloat(units="MiB", prec=1), description="IOC resident memory"
+        ),
+        "PollOverruns": AttrR(
+            Int(), description="Poll cycles longer than their period"
+        ),
     }
 
 

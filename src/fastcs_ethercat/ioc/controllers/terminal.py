@@ -15,19 +15,23 @@ from typing import Any, Final
 
 from fastcs.attributes import Attribute, AttrR
 from fastcs.controllers import Controller
-from fastcs.datatypes import Bool, Enum, Int, String
+from fastcs.datatypes import Int, String
 from fastcs.methods import Command
 
 from fastcs_ethercat.ads.ethercat import AlState, AlStateFlag, SlaveState
 from fastcs_ethercat.ioc.alarms import Status
 from fastcs_ethercat.ioc.attributes import (
+    RAW_LEAF_SUFFIX,
     CoeIO,
     CoeRef,
     PointIO,
     attribute_for_coe,
     attribute_for_point,
     from_device,
+    raw_twin,
+    to_engineering,
 )
+from fastcs_ethercat.ioc.datatypes import AlarmBool, alarm_enum
 from fastcs_ethercat.ioc.health import COMM, Health
 from fastcs_ethercat.ioc.plan import Point, TerminalPlan
 
@@ -54,6 +58,11 @@ def coe_leaf(attribute: str) -> str:
     return COE_LEAF_PREFIX + attribute
 
 
+def raw_leaf(point: Point) -> str:
+    """The leaf of a scaled point's raw twin: `...Value Raw` -> `...ValueRaw`."""
+    return point.symbol + RAW_LEAF_SUFFIX
+
+
 class AlStateView(enum.Enum):
     """The AL state as an mbbi an operator can read with plain `caget`:
     the state, with `_ERR` when the slave flags an error."""
@@ -69,6 +78,12 @@ class AlStateView(enum.Enum):
     BOOT_ERR = "BOOT_ERR"
     SAFEOP_ERR = "SAFEOP_ERR"
     OP_ERR = "OP_ERR"
+
+
+AL_STATE_SEVERITIES: Final = {
+    state: 0 if state is AlStateView.OP else 2 for state in AlStateView
+}
+"""A slave out of OP (or in OP with its error flag) is MAJOR."""
 
 
 def al_state_view(state: SlaveState) -> AlStateView:
@@ -132,9 +147,11 @@ class TerminalController(Controller):
         for coe in plan.coe if coe_io is not None else ():
             self._add_coe(coe, leaves, read_only)
         self.diag: dict[str, AttrR[Any, Any]] = {
-            "AlState": AttrR(Enum(AlStateView), description="AL state"),
+            "AlState": AttrR(
+                alarm_enum(AlStateView, AL_STATE_SEVERITIES), description="AL state"
+            ),
             "AlStateText": AttrR(String(), description="AL state and flags"),
-            "LinkOk": AttrR(Bool(), description="Link fine"),
+            "LinkOk": AttrR(AlarmBool(severities=(2, 0)), description="Link fine"),
             "LinkState": AttrR(Int(min=0, max=255), description="Link bits"),
             "CrcErrors": AttrR(Int(), description="CRC errors, all ports"),
             "Type": AttrR(
@@ -156,9 +173,14 @@ class TerminalController(Controller):
         except ValueError as error:
             self.unserved.append((point.symbol, str(error)))
             return
-        self.add_attribute(leaves[point.symbol], attr)
         assert isinstance(attr, AttrR)
+        self.add_attribute(leaves[point.symbol], attr)
         self.by_key[point.key] = attr
+        raw = raw_twin(point)
+        if raw is not None and point.scaling is not None:  # the poller feeds raw
+            self.add_attribute(leaves[raw_leaf(point)], raw)
+            self.health.follow(raw, attr, to_engineering(point.scaling))
+            self.by_key[point.key] = raw
 
     def _add_coe(self, coe: Any, leaves: Mapping[str, str], read_only: bool) -> None:
         source = f"CoE {coe.index:04X}:{coe.subindex:02X} {coe.attribute}"

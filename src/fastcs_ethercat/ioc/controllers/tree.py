@@ -19,7 +19,7 @@ from typing import Any
 from fastcs.attributes import Attribute, AttrR, AttrRW, AttrW
 from fastcs.controllers import BaseController, Controller
 
-from fastcs_ethercat.ioc.attributes import CoeIO, CoeRef, PointRef
+from fastcs_ethercat.ioc.attributes import CoeIO, CoeRef, PointRef, converts
 from fastcs_ethercat.ioc.coe import SlaveCoe
 from fastcs_ethercat.ioc.connection import Connection
 from fastcs_ethercat.ioc.controllers.master import MASTER_LEAVES, MasterController
@@ -29,7 +29,9 @@ from fastcs_ethercat.ioc.controllers.terminal import (
     GenericTerminalController,
     TerminalController,
     coe_leaf,
+    raw_leaf,
 )
+from fastcs_ethercat.ioc.datatypes import type_label
 from fastcs_ethercat.ioc.health import Health
 from fastcs_ethercat.ioc.naming import (
     RBV_SUFFIX,
@@ -76,8 +78,10 @@ def slave_path(master: MasterPlan, terminal: TerminalPlan) -> tuple[Node, ...]:
 
 
 def terminal_leaves(terminal: TerminalPlan) -> list[str]:
-    """Every leaf of a terminal controller: symbols, diagnostics, CoE."""
+    """Every leaf of a terminal controller: symbols (and the raw twins of
+    scaled ones), diagnostics, CoE."""
     leaves = [point.symbol for point in terminal.points]
+    leaves += [raw_leaf(point) for point in terminal.points if converts(point)]
     leaves += list(DIAGNOSTIC_LEAVES)
     if terminal.coe:
         leaves += [coe_leaf(coe.attribute) for coe in terminal.coe]
@@ -213,7 +217,7 @@ def _walk(controller: BaseController) -> Iterator[PvEntry]:
 
 
 def _entries(pv: str, attr: Attribute) -> Iterator[PvEntry]:
-    datatype = type(attr.datatype).__name__
+    datatype = type_label(attr.datatype)
     ref = attr.io_ref if attr.has_io_ref() else None
     if isinstance(ref, PointRef):
         source = ref.point.symbol
