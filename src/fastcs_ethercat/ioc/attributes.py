@@ -22,7 +22,7 @@ import dataclasses
 import enum
 from collections.abc import Awaitable, Callable
 from dataclasses import KW_ONLY, dataclass
-from typing import Any, Final
+from typing import Any
 
 import numpy as np
 from fastcs.attributes import Attribute, AttributeIO, AttributeIORef, AttrR, AttrRW
@@ -45,11 +45,6 @@ PointWriter = Callable[[Point, Any], Awaitable[None]]
 """Writes one value of an output point to the target (the poller's write_point)."""
 CoeReader = Callable[[CoePoint], Awaitable[Any]]
 CoeWriter = Callable[[CoePoint, Any], Awaitable[None]]
-
-
-RAW_LEAF_SUFFIX: Final = " Raw"
-"""Appended to a scaled point's leaf (its symbol) to name its raw twin."""
-RAW_ATTRIBUTE_SUFFIX: Final = "_raw"
 
 
 def point_datatype(point: Point) -> DataType:

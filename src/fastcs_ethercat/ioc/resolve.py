@@ -39,7 +39,6 @@ from fastcs_ethercat.terminals.model import CoeObject, TerminalType
 from fastcs_ethercat.terminals.names import snake_name
 from fastcs_ethercat.terminals.registry import TerminalRegistry
 from fastcs_ethercat.terminals.symbols import (
-    ExpandedMember,
     ExpandedSymbol,
     expanded_symbols,
 )
@@ -55,6 +54,8 @@ RUNTIME_ATTRIBUTES = {
 """TwinCAT's per-terminal runtime symbols (not in the ESI) and their names."""
 
 Types = Mapping[str, AdsDataTypeEntry]
+NUMBER_KINDS = frozenset({PointKind.SCALAR, PointKind.ARRAY})
+"""Points whose value can be served in engineering units (not status bits)."""
 
 
 def snake_case(text: str) -> str:
@@ -400,23 +401,15 @@ def _yaml_points(
                     symbol.name,
                     yaml_member.name if yaml_member else member.path or None,
                 ),
-                scaling=_served_scaling(yaml_member, member),
+                scaling=(
+                    yaml_member.scaling
+                    if yaml_member and member.kind in NUMBER_KINDS
+                    else None
+                ),
                 severity=SEVERITY_LEVELS[yaml_member.severity] if yaml_member else 0,
             )
         )
     return points
-
-
-def _served_scaling(
-    yaml_member: ExpandedMember | None, member: _Member
-) -> Scaling | None:
-    """The member's scaling where its value can carry one: a number or an
-    array of numbers, not a status bit."""
-    if yaml_member is None or yaml_member.scaling is None:
-        return None
-    if member.kind in (PointKind.BIT, PointKind.BITS):
-        return None
-    return yaml_member.scaling
 
 
 def generic_points(

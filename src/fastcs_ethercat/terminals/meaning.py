@@ -35,6 +35,8 @@ from typing import Final, Literal
 
 from fastcs_ethercat.terminals.model import SeverityName, SymbolMember
 
+RAW_SUFFIX: Final = " Raw"
+"""Added to a scaled value's name for its raw count's PV (`...ValueRaw`)."""
 MAX_PRECISION: Final = 6
 """Decimals shown at most: a DINT's count is nV, below any real resolution."""
 MAX_DESCRIPTION: Final = 40
@@ -88,7 +90,8 @@ class Scaling:
             parts.append(f"{self.offset:+.6g}")
         if self.unit:
             parts.append(self.unit)
-        return " ".join(parts) + f", {self.decimals} decimals"
+        plural = "" if self.decimals == 1 else "s"
+        return " ".join(parts) + f", {self.decimals} decimal{plural}"
 
 
 def dscale_scaling(dscale: str, type_name: str) -> Scaling | None:
@@ -121,7 +124,10 @@ def precision_of(scale: float) -> int:
 
 def member_scaling(member: SymbolMember) -> Scaling | None:
     """What the member's value is served as: its `DScale` with the YAML's
-    overrides on top; None for a raw value without a unit."""
+    overrides on top; None for a raw value without a unit, and for a status
+    bit or bit field."""
+    if is_status(member):
+        return None
     derived = dscale_scaling(member.dscale, member.type_name) if member.dscale else None
     overridden = (member.scale, member.offset, member.unit, member.precision)
     if all(value is None for value in overridden):
@@ -133,6 +139,12 @@ def member_scaling(member: SymbolMember) -> Scaling | None:
         unit=base.unit if member.unit is None else member.unit,
         precision=base.precision if member.precision is None else member.precision,
     )
+
+
+def is_status(member: SymbolMember) -> bool:
+    """A status or control bit or bit field (`BIT`, `BIT2`): a state, not a
+    value with units."""
+    return member.type_name.startswith("BIT")
 
 
 def severity_of_name(name: str, direction: Direction = "input") -> SeverityName:

@@ -144,7 +144,14 @@ from __future__ import annotations
 from collections.abc import Iterator
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, RootModel, StringConstraints
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    RootModel,
+    StringConstraints,
+    field_validator,
+)
 
 from fastcs_ethercat.terminals.names import CHANNEL, expand
 from fastcs_ethercat.terminals.yaml_style import (
@@ -160,6 +167,10 @@ SeverityName = Literal["none", "minor", "major"]
 """Alarm severity of a status bit or field while it is set."""
 MAX_UNIT_LENGTH = 15
 """A record's EGU holds 16 bytes with its NUL."""
+UNIT_CHOICES = ("scale", "offset", "unit", "precision")
+"""A member's engineering-unit overrides (`terminals units`)."""
+MEMBER_CHOICES = (*UNIT_CHOICES, "severity")
+"""A member's keys that are the engineer's (regenerate keeps them)."""
 SymbolAccess = Literal["ro", "rw"]
 CoeAccess = Literal["ro", "rw", "wo"]
 
@@ -232,14 +243,16 @@ class SymbolMember(_Model):
     )
     scale: float | None = Field(
         default=None,
+        allow_inf_nan=False,
         description="Override: engineering value per count (raw * scale + offset).",
     )
     offset: float | None = Field(
-        default=None, description="Override: engineering value at count 0."
+        default=None,
+        allow_inf_nan=False,
+        description="Override: engineering value at count 0.",
     )
     unit: str | None = Field(
         default=None,
-        max_length=MAX_UNIT_LENGTH,
         description="Override: engineering unit (EGU, e.g. V, mA, degC).",
     )
     precision: int | None = Field(
@@ -250,6 +263,23 @@ class SymbolMember(_Model):
         description="Override: alarm severity while the bit or field is set "
         "(none, minor, major).",
     )
+
+    @field_validator("scale")
+    @classmethod
+    def _scale_is_not_zero(cls, scale: float | None) -> float | None:
+        if scale == 0:
+            raise ValueError("a scale of 0 maps every count to one value")
+        return scale
+
+    @field_validator("unit")
+    @classmethod
+    def _unit_fits_egu(cls, unit: str | None) -> str | None:
+        if unit is not None and len(unit.encode("utf-8")) > MAX_UNIT_LENGTH:
+            raise ValueError(
+                f"{unit!r} is longer than a record's EGU "
+                f"({MAX_UNIT_LENGTH} bytes in UTF-8)"
+            )
+        return unit
 
     def address(self, position: int) -> tuple[int, int]:
         """(index, subindex) of this entry for the channel at `position`."""
@@ -446,6 +476,8 @@ class TerminalFile(RootModel[dict[str, TerminalType]]):
 
 __all__ = [
     "CHANNEL",
+    "MEMBER_CHOICES",
+    "UNIT_CHOICES",
     "CoeEnumItem",
     "CoeObject",
     "CoeSubItem",

@@ -21,7 +21,6 @@ from fastcs.methods import Command
 from fastcs_ethercat.ads.ethercat import AlState, AlStateFlag, SlaveState
 from fastcs_ethercat.ioc.alarms import Status
 from fastcs_ethercat.ioc.attributes import (
-    RAW_LEAF_SUFFIX,
     CoeIO,
     CoeRef,
     PointIO,
@@ -34,6 +33,7 @@ from fastcs_ethercat.ioc.attributes import (
 from fastcs_ethercat.ioc.datatypes import AlarmBool, alarm_enum
 from fastcs_ethercat.ioc.health import COMM, Health
 from fastcs_ethercat.ioc.plan import Point, TerminalPlan
+from fastcs_ethercat.terminals.meaning import RAW_SUFFIX
 
 DIAGNOSTIC_LEAVES: Final = (
     "AlState",
@@ -60,7 +60,7 @@ def coe_leaf(attribute: str) -> str:
 
 def raw_leaf(point: Point) -> str:
     """The leaf of a scaled point's raw twin: `...Value Raw` -> `...ValueRaw`."""
-    return point.symbol + RAW_LEAF_SUFFIX
+    return point.symbol + RAW_SUFFIX
 
 
 class AlStateView(enum.Enum):
