@@ -11,13 +11,18 @@ from fastcs_ethercat.esi.dictionary import parse_data_type
 from fastcs_ethercat.esi.model import EsiDataType
 from fastcs_ethercat.ioc.datatypes import (
     EXACT_DOUBLE_INTEGER,
+    AlarmBool,
+    AlarmInt,
     ExactFloat,
     IntegralFloat,
     UnsupportedTypeError,
     description,
+    engineering,
     enum_class,
     to_fastcs,
+    type_label,
 )
+from fastcs_ethercat.terminals.meaning import Scaling
 from tests.conftest import ESI_SUBSET as ESI
 
 
@@ -158,3 +163,25 @@ def test_enum_labels_and_descriptions_fit_their_record_fields() -> None:
     assert description("  a \n b ") == "a b"
     assert description(None) is None
     assert all(len(text.encode()) <= 40 for text in (description("°" * 30) or "", ""))
+
+
+def test_engineering_units_are_a_float_with_egu_prec_and_range() -> None:
+    volts = engineering("INT", Scaling(10 / 32767, 0.0, "V"))
+    loop = engineering("INT", Scaling(16 / 32767, 4.0, "mA"))
+    unit_only = engineering("DINT", Scaling(unit="N"))
+    real = engineering("REAL", Scaling(2.0, 1.0, "bar", 3))
+
+    assert volts == ExactFloat(units="V", prec=4, min=-32768 * 10 / 32767, max=10.0)
+    assert volts.validate(32767 * (10 / 32767) + 0.0) == 10.0  # the top count fits
+    assert isinstance(loop, ExactFloat)
+    assert (loop.min, loop.max) == (pytest.approx(4 - 16 * 32768 / 32767), 20.0)
+    assert unit_only == Int(units="N", min=-(2**31), max=2**31 - 1)
+    assert real == ExactFloat(units="bar", prec=3)
+    with pytest.raises(UnsupportedTypeError, match="no engineering units"):
+        engineering("STRING(10)", Scaling(2.0))
+
+
+def test_pv_lists_name_alarm_states_by_their_fastcs_type() -> None:
+    assert type_label(AlarmBool(severities=(0, 2))) == "Bool"
+    assert type_label(AlarmInt(set_severity=1)) == "Int"
+    assert type_label(ExactFloat()) == "ExactFloat"

@@ -544,7 +544,7 @@ MemberOption = Annotated[
     typer.Option(
         "--member",
         help="Member by ESI name ('Value', 'Status__Error') or fastcs_name; "
-        "default: the symbol's only member, or its one with a dscale.",
+        "default: the symbol's one value (units) or status bit (severity).",
     ),
 ]
 
@@ -633,7 +633,7 @@ def severity_command(
         type_name,
         lambda terminal: set_severity(terminal, symbol, member, severity),
     )
-    node, chosen = _member_of(file, name, terminal, symbol, member)
+    node, chosen = _member_of(file, name, terminal, symbol, member, status=True)
     effective = member_severity(chosen, node.direction)
     how = "set" if chosen.severity is not None else "from its name"
     typer.echo(f"{name}: {node.name_template}.{chosen.name}: {effective} ({how})")
@@ -646,12 +646,18 @@ def _read_one(file: Path, type_name: str | None) -> tuple[str, TerminalType]:
 
 
 def _member_of(
-    file: Path, name: str, terminal: TerminalType, symbol: str, member: str | None
+    file: Path,
+    name: str,
+    terminal: TerminalType,
+    symbol: str,
+    member: str | None,
+    *,
+    status: bool = False,
 ) -> tuple[Any, Any]:
     """The symbol node and member a `units` / `severity` command names."""
     try:
         node = terminal.symbol_nodes[find_symbol(terminal, symbol)]
-        return node, node.members[find_member(node, member)]
+        return node, node.members[find_member(node, member, status)]
     except SelectionError as error:
         raise UserError(str(error), path=file, where=name) from None
 

@@ -15,6 +15,7 @@ from collections.abc import Sequence
 from pydantic import ValidationError
 
 from fastcs_ethercat.terminals.checks import terminal_problems
+from fastcs_ethercat.terminals.meaning import is_status
 from fastcs_ethercat.terminals.model import (
     UNIT_CHOICES,
     CoeObject,
@@ -248,20 +249,19 @@ def rename_coe(terminal: TerminalType, index: int, name: str) -> TerminalType:
     return _checked(changed)
 
 
-def find_member(node: SymbolNode, wanted: str | None) -> int:
+def find_member(node: SymbolNode, wanted: str | None, status: bool = False) -> int:
     """Position of the member named `wanted` (its ESI name, any case, or its
-    fastcs_name) in `node`; without a name, the node's one member, or its
-    one member with a `dscale`."""
+    fastcs_name) in `node`; without a name, the node's one value (or with
+    `status`, its one status bit or field)."""
     members = node.members
     if wanted is None:
-        if len(members) == 1:
-            return 0
-        scaled = [i for i, m in enumerate(members) if m.dscale]
-        if len(scaled) == 1:
-            return scaled[0]
+        fitting = [i for i, m in enumerate(members) if is_status(m) == status]
+        if len(fitting) == 1:
+            return fitting[0]
         raise SelectionError(
-            f"{node.name_template!r} has {len(members)} members; name one with "
-            f"--member ({_member_names(members)})"
+            f"{node.name_template!r} has {len(fitting)} "
+            f"{'status bits' if status else 'values'}; name one with --member "
+            f"({_member_names([members[i] for i in fitting] or members)})"
         )
     folded = wanted.casefold()
     for position, member in enumerate(members):
@@ -319,5 +319,5 @@ def set_severity(
     implies again)."""
     changed = terminal.model_copy(deep=True)
     node = changed.symbol_nodes[find_symbol(changed, symbol)]
-    node.members[find_member(node, member)].severity = severity
+    node.members[find_member(node, member, status=True)].severity = severity
     return _checked(changed)
