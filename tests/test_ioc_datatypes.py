@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pytest
 from fastcs.datatypes import Bool, Enum, Float, Int, String, Waveform
@@ -9,6 +11,7 @@ from lxml import etree
 
 from fastcs_ethercat.esi.dictionary import parse_data_type
 from fastcs_ethercat.esi.model import EsiDataType
+from fastcs_ethercat.ioc.attributes import coe_datatype
 from fastcs_ethercat.ioc.datatypes import (
     EXACT_DOUBLE_INTEGER,
     AlarmBool,
@@ -22,6 +25,7 @@ from fastcs_ethercat.ioc.datatypes import (
     to_fastcs,
     type_label,
 )
+from fastcs_ethercat.ioc.plan import CoePoint
 from fastcs_ethercat.terminals.meaning import Scaling
 from tests.conftest import ESI_SUBSET as ESI
 
@@ -185,3 +189,13 @@ def test_pv_lists_name_alarm_states_by_their_fastcs_type() -> None:
     assert type_label(AlarmBool(severities=(0, 2))) == "Bool"
     assert type_label(AlarmInt(set_severity=1)) == "Int"
     assert type_label(ExactFloat()) == "ExactFloat"
+
+
+def test_coe_numbers_show_their_esi_unit() -> None:
+    def coe(type_name: str, units: str) -> Any:
+        return coe_datatype(CoePoint("x", 0x8000, 1, type_name, 16, False, units=units))
+
+    assert coe("INT", "degC") == Int(units="degC", min=-32768, max=32767)
+    assert coe("REAL", "mV/V").units == "mV/V"
+    assert coe("STRING(8)", "s") == String(length=8)
+    assert coe("UINT", "") == Int(min=0, max=65535)

@@ -17,7 +17,6 @@ import queue
 import re
 import subprocess
 import sys
-import threading
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -486,20 +485,11 @@ _CAMONITOR_LINE = re.compile(
 )
 
 
-def _monitor(demo: Demo, pv: str) -> tuple[subprocess.Popen[str], queue.Queue[str]]:
-    """camonitor of `pv` with its lines in a queue (stop it by PID)."""
-    process = subprocess.Popen(
-        [str(BIN / "camonitor"), pv],
-        env=demo.ioc.env,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.DEVNULL,
-        text=True,
-    )
-    lines: queue.Queue[str] = queue.Queue()
-    assert process.stdout is not None
-    stdout = process.stdout
-    threading.Thread(target=lambda: [lines.put(x) for x in stdout], daemon=True).start()
-    return process, lines
+def _monitor(demo: Demo, pv: str) -> IocProcess:
+    """camonitor of `pv`, its lines in a queue (stop it by its PID alone: it
+    carries the IOC's token)."""
+    camonitor = [str(BIN / "camonitor"), pv]
+    return start_ioc(camonitor, demo.ioc.prefix, demo.ioc.env, demo.ioc.token)
 
 
 def _next_event(lines: queue.Queue[str], value: str, timeout: float) -> re.Match[str]:
@@ -522,7 +512,8 @@ def test_error_bit_turns_its_status_pv_major_with_the_value(demo: Demo) -> None:
     error = STANDARD_CHANNEL.format(4) + ".Status.Error"
     overrange = STANDARD_CHANNEL.format(4) + ".Status.Overrange"
     error_pv, overrange_pv = demo.by_source(error), demo.by_source(overrange)
-    process, lines = _monitor(demo, error_pv)
+    monitor = _monitor(demo, error_pv)
+    lines = monitor.lines
     try:
         _next_event(lines, "False", 10)
         put_at = time.time()
@@ -534,8 +525,8 @@ def test_error_bit_turns_its_status_pv_major_with_the_value(demo: Demo) -> None:
         demo.sim.set_symbol(overrange, 0)
         cleared = _next_event(lines, "False", 10)
     finally:
-        stop_pid(process.pid)
-        process.wait(5)
+        stop_pid(monitor.process.pid)
+        monitor.process.wait(5)
     after = caget(demo.ioc, "-a", error_pv, overrange_pv)
     stamp = time.mktime(time.strptime(raised["stamp"][:19], "%Y-%m-%d %H:%M:%S"))
     stamp += float("0" + raised["stamp"][19:])

@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 from fastcs.attributes import Attribute, AttributeIO, AttributeIORef, AttrR, AttrRW
 from fastcs.attributes.attr_w import AttrW
-from fastcs.datatypes import Bool, DataType, Enum, Int, Waveform
+from fastcs.datatypes import Bool, DataType, Enum, Float, Int, Waveform
 
 from fastcs_ethercat.ads.values import parse_type
 from fastcs_ethercat.ioc.datatypes import (
@@ -125,19 +125,21 @@ def from_engineering(point: Point, value: Any) -> Any:
 
 
 def coe_datatype(coe: CoePoint) -> DataType:
-    """The FastCS datatype of a CoE sub-item (its ESI type, enum texts)."""
+    """The FastCS datatype of a CoE sub-item (its ESI type, enum texts, the
+    unit of a number)."""
     if coe.enum_texts:  # ESI enum types (DT0800EN03) name no base type
         return Enum(enum_class(coe.attribute, dict(coe.enum_texts)))
     try:
-        if coe.units:
-            return engineering(coe.type_name, Scaling(unit=coe.units))
-        return to_fastcs(coe.type_name)
+        datatype = to_fastcs(coe.type_name)
     except ValueError:
         if coe.bit_size == 1:
             return Bool()
         if 0 < coe.bit_size <= 16:
             return Int(min=0, max=(1 << coe.bit_size) - 1)
         raise
+    if coe.units and isinstance(datatype, Int | Float):
+        return dataclasses.replace(datatype, units=coe.units)
+    return datatype
 
 
 def to_device(value: Any) -> Any:
