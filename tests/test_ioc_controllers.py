@@ -406,3 +406,4 @@ async def test_status_bits_and_diagnostics_carry_their_severity() -> None:
     assert value_alarm(master.attrs["State"]).severity is Severity.NO_ALARM
     assert value_alarm(master.attrs["Online"]) == NO_ALARM
     assert value_alarm(root.attrs["Connected"]).severity is Severity.MAJOR  # False
+    assert value_alarm(root.attrs["ConnectionState"]).severity is Severity.MAJOR

@@ -545,7 +545,7 @@ def test_error_bit_turns_its_status_pv_major_with_the_value(demo: Demo) -> None:
 def test_diagnostics_are_enums_and_alarms(demo: Demo) -> None:
     p = demo.ioc.pv
     names = [p("ETH1:State"), p("ETH1:RIO21:MOD22:AlState"), p("Connected")]
-    names += [p("ETH1:Online"), p("ETH1:RIO21:MOD22:LinkOk")]
+    names += [p("ETH1:Online"), p("ETH1:RIO21:MOD22:LinkOk"), p("ConnectionState")]
     values = wait_for(
         lambda: (
             (v := caget(demo.ioc, "-a", *names))
@@ -557,7 +557,8 @@ def test_diagnostics_are_enums_and_alarms(demo: Demo) -> None:
 
     assert values[p("ETH1:State")].split()[-1] == "OP"  # an mbbi with strings
     assert values[p("ETH1:RIO21:MOD22:AlState")].split()[-1] == "OP"
-    assert all(values[name].split()[-1] in ("OP", "True") for name in names)
+    assert values[p("ConnectionState")].split()[-1] == "CONNECTED"
+    assert all(values[n].split()[-1] in ("OP", "True", "CONNECTED") for n in names)
 
 
 def test_ioc_health_pvs(demo: Demo) -> None:

@@ -37,12 +37,13 @@ from fastcs_ethercat.ioc.controllers.tree import (
     pv_requests,
     slave_path,
 )
-from fastcs_ethercat.ioc.datatypes import AlarmBool, ExactFloat
+from fastcs_ethercat.ioc.datatypes import AlarmBool, ExactFloat, alarm_enum
 from fastcs_ethercat.ioc.health import Health
 from fastcs_ethercat.ioc.naming import PvNames, PvRequest, alias_key, plan_pv_names
 from fastcs_ethercat.ioc.plan import MasterPlan, SystemPlan, TerminalPlan
 from fastcs_ethercat.ioc.process_stats import ProcessStats
 from fastcs_ethercat.ioc.reconnect import Reconnection
+from fastcs_ethercat.ioc.supervisor import LinkState
 from fastcs_ethercat.terminals.registry import TerminalRegistry
 
 logger = logging.getLogger(__name__)
@@ -57,6 +58,13 @@ PROCESS_LEAVES: Final = (
     "PollOverruns",
 )
 """The IOC process's health (what devIocStats gives a C IOC)."""
+LINK_SEVERITIES: Final = {
+    LinkState.CONNECTED: 0,
+    LinkState.RESYNCING: 1,
+    LinkState.DISCONNECTED: 2,
+    LinkState.STOPPED: 2,
+}
+"""`ConnectionState` as an alarm: a resync is MINOR, no target MAJOR."""
 ROOT_LEAVES: Final = (
     "Connected",
     "Target",
@@ -286,7 +294,7 @@ class RootController(Controller):
         try:
             a = self.attrs
             await self.health.post(a["Connected"], state == "CONNECTED")
-            await post(a["ConnectionState"], state)
+            await self.health.post(a["ConnectionState"], state)
             if error:
                 await post(a["LastError"], error[:200])
         except Exception:  # never stop the caller (the supervisor)
@@ -331,7 +339,7 @@ class RootController(Controller):
         errors_total = sum(s.errors + s.item_errors for s in stats)
         await post(a["PollErrors"], min(errors_total, 2**31 - 1))
         await post(a["LastError"], last_error[:200])
-        await post(a["ConnectionState"], str(link.state))
+        await self.health.post(a["ConnectionState"], str(link.state))
         await post(a["Reconnects"], min(link.reconnects + link.resyncs, 2**31 - 1))
         await post(a["LastRecovery"], link.last_recovery_s)
         await post(a["ChainChanges"], self.reconnection.chain_changes[:200])
@@ -372,7 +380,11 @@ def _root_attributes(
         ),
         "PollErrors": AttrR(Int(), description="Failed poll reads"),
         "LastError": AttrR(String(), description="Last ADS error"),
-        "ConnectionState": AttrR(String(), description="Link to the target"),
+        "ConnectionState": AttrR(
+            alarm_enum(LinkState, LINK_SEVERITIES),
+            initial_value=LinkState.DISCONNECTED,
+            description="Link to the target",
+        ),
         "Reconnects": AttrR(Int(), description="Reconnects and resyncs"),
         "LastRecovery": AttrR(
             ExactFloat(units="s", prec=2), description="Last outage, loss to poll"
