@@ -365,7 +365,10 @@ class _TypeView:
         """The symbol's members with the PV of its first channel each."""
         node = self.terminal.symbol_nodes[position]
         first = node.channels[0] if node.channels else None
-        pv_of = {p.member: p for p in previews if p.channel == first}
+        pv_of: dict[str | None, PvPreview] = {}
+        for preview in previews:  # a value's own PV before its raw twin's
+            if preview.channel == first:
+                pv_of.setdefault(preview.member, preview)
         whole = pv_of.get(None)
         rows = []
         for member in node.members:
