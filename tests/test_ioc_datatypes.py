@@ -11,7 +11,7 @@ from lxml import etree
 
 from fastcs_ethercat.esi.dictionary import parse_data_type
 from fastcs_ethercat.esi.model import EsiDataType
-from fastcs_ethercat.ioc.attributes import coe_datatype
+from fastcs_ethercat.ioc.attributes import coe_datatype, from_engineering
 from fastcs_ethercat.ioc.datatypes import (
     EXACT_DOUBLE_INTEGER,
     AlarmBool,
@@ -25,7 +25,7 @@ from fastcs_ethercat.ioc.datatypes import (
     to_fastcs,
     type_label,
 )
-from fastcs_ethercat.ioc.plan import CoePoint
+from fastcs_ethercat.ioc.plan import CoePoint, Point, PointKind
 from fastcs_ethercat.terminals.meaning import Scaling
 from tests.conftest import ESI_SUBSET as ESI
 
@@ -199,3 +199,19 @@ def test_coe_numbers_show_their_esi_unit() -> None:
     assert coe("REAL", "mV/V").units == "mV/V"
     assert coe("STRING(8)", "s") == String(length=8)
     assert coe("UINT", "") == Int(min=0, max=65535)
+
+
+def test_values_written_in_engineering_units_become_counts() -> None:
+    def point(type_name: str, kind: PointKind = PointKind.SCALAR) -> Point:
+        return Point("k", "s", "a", type_name, kind, 0xF020, 0, 2, length=3,
+                     writable=True, scaling=Scaling(10 / 32767, 0.0, "V"))  # fmt: skip
+
+    assert from_engineering(point("INT"), 2.5) == 8192  # 8191.75 -> nearest
+    assert from_engineering(point("INT", PointKind.ARRAY), [0.0, 5.0, -10.0]) == [
+        0,
+        16384,
+        -32767,
+    ]
+    assert from_engineering(point("REAL"), 1.0) == pytest.approx(3276.7)
+    unscaled = Point("k", "s", "a", "INT", PointKind.SCALAR, 0xF020, 0, 2)
+    assert from_engineering(unscaled, 7) == 7

@@ -20,9 +20,9 @@ from fastcs_ethercat.ioc.naming import (
     PvRequest,
     plan_pv_names,
 )
-from fastcs_ethercat.terminals.meaning import RAW_SUFFIX
+from fastcs_ethercat.terminals.meaning import RAW_SUFFIX, has_raw_twin
 from fastcs_ethercat.terminals.model import TerminalType
-from fastcs_ethercat.terminals.symbols import ExpandedMember, expanded_symbols
+from fastcs_ethercat.terminals.symbols import expanded_symbols
 
 TERMINAL_PREFIX = re.compile(r"^(?P<ioc>.+):ETH(?P<m>\d+):RIO(?P<c>\d+):MOD(?P<t>\d+)$")
 EXAMPLE_PREFIX = "BL45P-MO-IOC-01:ETH1:RIO1:MOD5"
@@ -62,11 +62,6 @@ class _Leaf:
     member: str | None = None
 
 
-def _has_raw_twin(member: ExpandedMember) -> bool:
-    """A value served in engineering units has its raw count beside."""
-    return member.scaling is not None and member.scaling.converts
-
-
 def _leaves(terminal: TerminalType, terminal_name: str) -> list[_Leaf]:
     """One leaf per PV of the selected symbols and CoE objects."""
     leaves: list[_Leaf] = []
@@ -78,12 +73,12 @@ def _leaves(terminal: TerminalType, terminal_name: str) -> list[_Leaf]:
             for member in symbol.members:
                 path = f"{name}.{'.'.join(member.path)}"
                 leaves.append(_Leaf(path, path, writable, member=member.name, **where))
-                if _has_raw_twin(member):
+                if has_raw_twin(member.scaling):
                     raw = path + RAW_SUFFIX
                     leaves.append(_Leaf(raw, path, False, member=member.name, **where))
         else:
             leaves.append(_Leaf(name, name, writable, **where))
-            if len(symbol.members) == 1 and _has_raw_twin(symbol.members[0]):
+            if len(symbol.members) == 1 and has_raw_twin(symbol.members[0].scaling):
                 leaves.append(_Leaf(name + RAW_SUFFIX, name, False, **where))
     for obj in terminal.coe_objects:
         if not obj.selected:

@@ -39,7 +39,7 @@ from fastcs_ethercat.ioc.datatypes import (
     to_fastcs,
 )
 from fastcs_ethercat.ioc.plan import CoePoint, Point, PointKind
-from fastcs_ethercat.terminals.meaning import Scaling
+from fastcs_ethercat.terminals.meaning import Scaling, has_raw_twin
 
 PointWriter = Callable[[Point, Any], Awaitable[None]]
 """Writes one value of an output point to the target (the poller's write_point)."""
@@ -66,7 +66,7 @@ def point_datatype(point: Point) -> DataType:
     scaling = point.scaling
     if point.kind is PointKind.ARRAY:
         length = max(point.length, 1)
-        if scaling is not None and scaling.converts:
+        if has_raw_twin(scaling):
             return Waveform(np.dtype(np.float64), shape=(length,))
         return to_fastcs(f"ARRAY [0..{length - 1}] OF {point.type_name}")
     if scaling is not None and members is None:
@@ -81,7 +81,7 @@ def point_datatype(point: Point) -> DataType:
 
 def converts(point: Point) -> bool:
     """Whether the point's value is served scaled (and its raw count by a twin)."""
-    return point.scaling is not None and point.scaling.converts
+    return has_raw_twin(point.scaling)
 
 
 def raw_twin(point: Point) -> AttrR[Any, Any] | None:
@@ -116,7 +116,7 @@ def from_engineering(point: Point, value: Any) -> Any:
     """An engineering value as the count the device takes: the nearest count
     for an integer type (outside its range, the write is refused)."""
     scaling = point.scaling
-    if scaling is None or not scaling.converts:
+    if scaling is None or not has_raw_twin(scaling):
         return value
     raw = (np.asarray(value, dtype=np.float64) - scaling.offset) / scaling.scale
     if parse_type(point.type_name).kind in ("int", "bits"):

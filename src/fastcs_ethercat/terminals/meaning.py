@@ -94,6 +94,11 @@ class Scaling:
         return " ".join(parts) + f", {self.decimals} decimal{plural}"
 
 
+def has_raw_twin(scaling: Scaling | None) -> bool:
+    """Whether a value served with `scaling` gets its raw count's PV beside."""
+    return scaling is not None and scaling.converts
+
+
 def dscale_scaling(dscale: str, type_name: str) -> Scaling | None:
     """The scaling a Beckhoff `DScale` gives a value of `type_name`; None
     when the text or the type is not one whose meaning is known."""
