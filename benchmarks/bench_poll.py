@@ -2,12 +2,12 @@
 
 Usage: python benchmarks/bench_poll.py [--runs N] [--live]
 
-Points mimic a real rack: per 4-byte analog channel a status word (8 bit
-points read as one word) and an INT value; per 16 channels 16 digital bits of
-the bit image; a few oversampled arrays. For each size it prints the sum-read
-items and requests per cycle and the median time of `decode` over all
-requests when nothing changed, when 1 % of the bytes changed and when
-everything changed (every value converted and handed on).
+Points mimic a real rack, each read by the handle of its symbol: per 4-byte
+analog channel one symbol, a status word (8 bit points) and an INT value;
+per 16 channels 16 digital bit symbols; a few oversampled arrays. For each
+size it prints the sum-read items and requests per cycle and the median time
+of `decode` over all requests when nothing changed, when 1 % of the bytes
+changed and when everything changed (every value converted and handed on).
 With --live it also polls the demo chain in the simulator and prints the
 median full cycle (sum read round trip + decode).
 """
@@ -38,6 +38,7 @@ def synthetic_points(count: int) -> list[Point]:
     while len(points) < count:
         kind = len(points) % 40
         if kind < 27:  # an analog channel: 8 status bits + value
+            channel = f"c{offset}"
             for n in range(8):
                 points.append(
                     Point(
@@ -51,6 +52,7 @@ def synthetic_points(count: int) -> list[Point]:
                         2,
                         bit_offset=n * 2,
                         bit_size=1,
+                        source=channel,
                     )
                 )
             points.append(
@@ -63,6 +65,8 @@ def synthetic_points(count: int) -> list[Point]:
                     BYTES,
                     offset + 2,
                     2,
+                    source=channel,
+                    source_offset=2,
                 )
             )
             offset += 4
@@ -122,7 +126,8 @@ def time_decode(layout: PollLayout, answers: list[bytes], runs: int) -> float:
 def bench_size(count: int, runs: int) -> None:
     rng = np.random.default_rng(1)
     points = synthetic_points(count)
-    layout = PollLayout.build(points)
+    handles = {name: n for n, name in enumerate({p.source_name for p in points})}
+    layout = PollLayout.build(points, handles)
     base = answers_for(layout, rng)
     for chunk, answer in zip(layout.chunks, base, strict=True):
         chunk.decode(answer.tobytes())  # first cycle: everything
@@ -165,6 +170,7 @@ def bench_live(runs: int) -> None:
     from fastcs_ethercat.ioc.clients import ClientPool
     from fastcs_ethercat.ioc.config import IocConfig
     from fastcs_ethercat.ioc.discovery import discover
+    from fastcs_ethercat.ioc.handles import acquire
     from fastcs_ethercat.ioc.poller import Poller
     from fastcs_ethercat.sim.process import SimProcess
     from fastcs_ethercat.terminals import load_terminals
@@ -176,7 +182,8 @@ def bench_live(runs: int) -> None:
             master = plan.masters[0]
             points = [p for t in master.terminals for p in t.points]
             client = await pool.get(plan.net_id, master.symbol_port)
-            poller = Poller(client, points, lambda changes, stamp: None)
+            handles = await acquire(client, points)
+            poller = Poller(client, points, handles.reads, lambda changes, stamp: None)
             times = []
             for _ in range(runs):
                 started = time.perf_counter()

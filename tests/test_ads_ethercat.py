@@ -150,3 +150,22 @@ def test_decoders_only_raise_codec_errors(raw: bytes) -> None:
     ):
         with contextlib.suppress(AdsCodecError):
             decode(raw)
+
+
+@pytest.mark.parametrize(
+    ("link", "own"),
+    [
+        (0, False),
+        (LinkState.NOT_PRESENT, True),
+        (LinkState.MISSING_LINK | LinkState.PORT_B, False),  # the next slave's
+        (LinkState.NO_COMMUNICATION | LinkState.PORT_C, False),
+        (LinkState.ADDITIONAL_LINK | LinkState.PORT_D, False),
+        (LinkState.MISSING_LINK | LinkState.PORT_A, True),  # its own way in
+        (LinkState.MISSING_LINK, True),  # no port named: its own
+        (LinkState.NO_COMMUNICATION, True),
+    ],
+)
+def test_a_link_fault_is_the_slaves_own_only_on_its_own_port(
+    link: int, own: bool
+) -> None:
+    assert LinkState(link).own_fault() is own

@@ -108,3 +108,55 @@ def test_an_online_change_forgets_every_plan() -> None:
     symbols = target.devices[0].table.symbols[:50]
     moved = [SumReadItem(s.index_group, s.index_offset, s.size) for s in symbols]
     assert _answer(fresh, moved) == _general(fresh, moved)
+
+
+def _handles(port: DevicePort, names: list[str]) -> list[int]:
+    handles = []
+    for name in names:
+        result, data = port.read_write(
+            IndexGroup.SYM_HANDLE_BY_NAME, 0, 4, name.encode("cp1252") + b"\0"
+        )
+        assert result == AdsReturnCode.NO_ERROR
+        handles.append(int.from_bytes(data, "little"))
+    return handles
+
+
+def test_reads_by_handle_answer_like_the_general_path_while_valid() -> None:
+    """Every symbol by its handle (bit symbols, structures, arrays; some read
+    shorter and some longer than they are) from the plan, as the general
+    path answers; an online change or a released handle is never answered
+    from a plan (0x711 / 0x710 per item)."""
+    target = demo_target()
+    port = _port(target)
+    symbols = target.devices[0].table.symbols
+    handles = _handles(port, [s.name for s in symbols])
+    lengths = [s.size + (n % 3) - 1 or 1 for n, s in enumerate(symbols)]
+    items = [
+        SumReadItem(IndexGroup.SYM_VALUE_BY_HANDLE, h, n)
+        for h, n in zip(handles, lengths, strict=True)
+    ][:500]
+    expected = _general(port, items)
+    assert _answer(port, items) == expected
+    assert port.plans.plans.get(SumReadRequest(tuple(items)).encode()) is not None
+    target.tick(target.cycle_s * 3)
+    assert _answer(port, items) == _general(port, items)
+
+    release = port.write(
+        IndexGroup.SYM_RELEASE_HANDLE, 0, handles[0].to_bytes(4, "little")
+    )
+    released = _answer(port, items)
+    released_general = _general(port, items)
+    target.online_change()
+    changed = _answer(_port(target), items)
+
+    assert release == AdsReturnCode.NO_ERROR
+    assert released[1][:4] == AdsReturnCode.DEVICE_SYMBOL_NOT_FOUND.to_bytes(
+        4, "little"
+    )
+    assert released == released_general
+    results = [
+        int.from_bytes(changed[1][4 * i : 4 * i + 4], "little")
+        for i in range(len(items))
+    ]
+    assert results[0] == AdsReturnCode.DEVICE_SYMBOL_NOT_FOUND  # released
+    assert set(results[1:]) == {AdsReturnCode.DEVICE_SYMBOL_VERSION_INVALID}

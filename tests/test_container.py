@@ -33,7 +33,7 @@ IMAGE = "localhost/fastcs-ethercat:test"
 PODMAN = str(REPO_ROOT / "deploy" / "podman.sh")
 BUILD_TIMEOUT_S = 1500
 DEMO_CHAIN = REPO_ROOT / "ioc" / "demo-chain.yaml"
-PV = "ETH1:RIO1:MOD5:AICompactCh1"
+PV = "ETH1:RIO1:MOD5:CH1:Value"
 STOP_LIMIT_S = 2.0
 
 _MISSING = [
@@ -182,7 +182,8 @@ def test_ioc_in_the_image_serves_the_host_and_stops_on_sigterm(
     assert first is not None and moved
     assert pv in pva
     assert stopped_in < STOP_LIMIT_S
-    assert (screens / f"{prefix}.bob").is_file()
+    assert (screens / "index.bob").is_file()
+    assert f"{prefix}:ETH1:RIO1:MOD5:AlState" in (screens / "ETH1.bob").read_text()
 
 
 def test_demo_runs_inside_the_image(image: str, token: str) -> None:

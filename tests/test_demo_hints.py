@@ -16,7 +16,7 @@ from fastcs_ethercat.cli import demo_hints
 from fastcs_ethercat.cli.demo_hints import DemoHints, write_pv_list
 from fastcs_ethercat.cli.ports import CA_SERVER_PORT, DemoPorts, demo_ports
 
-NAMES = ["D:ETH1:RIO1:MOD5:AICompactCh1", "D:ETH1:RIO1:MOD5:AlStateText", "D:X"]
+NAMES = ["D:ETH1:RIO1:MOD5:CH1:Value", "D:ETH1:RIO1:MOD5:AlStateText", "D:X"]
 
 
 @pytest.fixture

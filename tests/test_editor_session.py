@@ -64,11 +64,18 @@ def test_search_and_add_from_the_catalog(
 def test_the_preview_names_the_pvs_as_the_ioc_does() -> None:
     el3104 = read_terminal_file(TERMINALS / "EL3104.yaml")["EL3104"]
     pvs = [p.pv for p in preview_pvs(el3104, "EL3104", "DEMO:ETH1:RIO21:MOD22")]
-    assert len(pvs) == 40 and "DEMO:ETH1:RIO21:MOD22:AIStdCh1StatusError" in pvs
-    assert "DEMO:ETH1:RIO21:MOD22:AIStdCh1ValueRaw" in pvs  # volts, and counts
-    long = preview_pvs(el3104, "EL3104", "BL45P-MO-IOC-01-LONG:ETH1:RIO1:MOD12")
-    assert all(p.longest <= 60 for p in long)
-    assert any(p.shortened for p in long)
+    assert len(pvs) == 40 and "DEMO:ETH1:RIO21:MOD22:CH1:Error" in pvs
+    assert "DEMO:ETH1:RIO21:MOD22:CH1:ValueRaw" in pvs  # volts, and counts
+    longest = "BL45P-MO-IOC-01-LONGER:ETH1:RIO1:MOD112"  # the longest prefix
+    long = preview_pvs(el3104, "EL3104", longest)
+    assert all(p.longest <= 60 for p in long) and not any(p.shortened for p in long)
+    el1502 = read_terminal_file(TERMINALS / "EL1502.yaml")["EL1502"]
+    counter = {
+        p.source.rpartition(".")[2]: p for p in preview_pvs(el1502, "EL1502", longest)
+    }
+    enable = counter["Enable output functions"]
+    assert enable.pv.endswith(":MOD112:EnblOtptFnctns") and enable.longest <= 60
+    assert enable.shortened == "vowels dropped to fit 15 characters"
     with pytest.raises(UserError, match="type a terminal's PV prefix"):
         preview_pvs(el3104, "EL3104", "BL45P-MO-IOC-01")
 

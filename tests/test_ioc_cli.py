@@ -115,7 +115,7 @@ def test_demo_prints_lines_that_read_numbers_and_text_from_a_bare_shell(
     finally:
         demo.stop()
 
-    pv = f"{prefix}:ETH1:RIO1:MOD5:AICompactCh1"
+    pv = f"{prefix}:ETH1:RIO1:MOD5:CH1:Value"
     caget_out, pvget_out, text_out = outputs
     assert caget_out.split()[0] == pv and -10.001 <= float(caget_out.split()[1]) <= 10
     assert pv in pvget_out

@@ -17,13 +17,14 @@ from fastcs.attributes import AttrR, AttrRW
 from fastcs.datatypes import Bool, Enum, Int, Waveform
 
 from fastcs_ethercat.ads.constants import IndexGroup
+from fastcs_ethercat.ads.errors import AdsTimeoutError
 from fastcs_ethercat.ads.ethercat import (
     AlState,
     AlStateFlag,
     FrameCounters,
     SlaveState,
 )
-from fastcs_ethercat.ioc.alarms import NO_ALARM, Severity, value_alarm
+from fastcs_ethercat.ioc.alarms import NO_ALARM, Severity, Status, value_alarm
 from fastcs_ethercat.ioc.attributes import CoeIO
 from fastcs_ethercat.ioc.config import IocConfig, load_ioc_config
 from fastcs_ethercat.ioc.connection import Connection
@@ -36,6 +37,7 @@ from fastcs_ethercat.ioc.controllers.terminal import (
     al_state_text,
 )
 from fastcs_ethercat.ioc.datatypes import ExactFloat, IntegralFloat, severity_table
+from fastcs_ethercat.ioc.handles import PointHandles
 from fastcs_ethercat.ioc.plan import (
     CoePoint,
     MasterPlan,
@@ -69,16 +71,29 @@ def _point(symbol: str, type_name: str, **extra: Any) -> Point:
 
 
 VOLTS = Scaling(10 / 32767, 0.0, "V")
+CHANNEL_1 = {"channel": 1}
 ANALOG_POINTS = [
-    _point(f"{ANALOG}.AI Standard Channel 1.Value", "INT", scaling=Scaling(unit="V")),
     _point(
-        f"{ANALOG}.AI Standard Channel 1.Status.Overrange", "BIT", kind=PointKind.BIT
+        f"{ANALOG}.AI Standard Channel 1.Value",
+        "INT",
+        scaling=Scaling(unit="V"),
+        entry_name="Value",
+        **CHANNEL_1,
+    ),
+    _point(
+        f"{ANALOG}.AI Standard Channel 1.Status.Overrange",
+        "BIT",
+        kind=PointKind.BIT,
+        entry_name="Status.Overrange",
+        **CHANNEL_1,
     ),
     _point(
         f"{ANALOG}.AI Standard Channel 1.Status.Limit 1",
         "BIT2",
         kind=PointKind.BITS,
         bit_size=2,
+        entry_name="Status.Limit 1",
+        **CHANNEL_1,
     ),
     _point(f"{ANALOG}.Scaled", "LREAL", byte_size=8),
     _point(f"{ANALOG}.Counter", "UDINT", byte_size=4),
@@ -96,7 +111,8 @@ ANALOG_POINTS = [
     _point(f"{ANALOG}.Status.Error", "BIT", kind=PointKind.BIT, severity=2),
 ]
 COE = [CoePoint("presentation", 0x8000, 0x02, "DT0800EN03", 3, True,
-                enum_texts=((0, "Signed"), (1, "Unsigned")))]  # fmt: skip
+                enum_texts=((0, "Signed"), (1, "Unsigned")), name="Presentation",
+                object_name="AI Settings")]  # fmt: skip
 
 
 def _plan() -> SystemPlan:
@@ -142,6 +158,9 @@ class Recorder:
         else:
             self.writes.append((group, offset, data))
 
+    async def write_by_handle(self, handle: int, data: bytes) -> None:
+        self.writes.append((IndexGroup.SYM_VALUE_BY_HANDLE, handle, data))
+
 
 def _root(
     recorder: Recorder, config: IocConfig | None = None, **extra: Any
@@ -169,9 +188,10 @@ def test_tree_levels_and_names_follow_the_default_scheme() -> None:
     root = _root(Recorder())
     names = [entry.name for entry in root.pvs()]
 
-    assert "TEST:ETH1:RIO1:MOD2:AIStdCh1Value" in names
+    assert "TEST:ETH1:RIO1:MOD2:CH1:Value" in names
+    assert "TEST:ETH1:RIO1:MOD2:CH1:Overrange" in names
     assert "TEST:ETH1:RIO1:MOD2:Mode_RBV" in names
-    assert "TEST:ETH1:RIO1:MOD2:CoePresentation" in names
+    assert "TEST:ETH1:RIO1:MOD2:C8000:Presentation_RBV" in names
     assert "TEST:ETH1:RIO1:MOD2:CoeRefresh" in names
     assert "TEST:ETH1:RIO1:MOD3:Raw" in names
     assert "TEST:ETH1:RIO1:AlState" in names
@@ -179,6 +199,19 @@ def test_tree_levels_and_names_follow_the_default_scheme() -> None:
     assert "TEST:PollRate" in names
     assert all(len(name) <= 60 for name in names)
     assert [e.line() for e in root.pvs()] == [e.line() for e in _root(Recorder()).pvs()]
+
+
+def test_channels_and_coe_objects_are_sub_controllers_of_the_terminal() -> None:
+    terminal = _analog(_root(Recorder()))
+    channel, coe = terminal.sub_controllers["CH1"], terminal.sub_controllers["C8000"]
+
+    assert list(terminal.sub_controllers) == ["CH1", "C8000"]
+    assert list(channel.attributes) == ["Value", "Overrange", "Limit1"]
+    assert channel.path == ["TEST", "ETH1", "RIO1", "MOD2", "CH1"]
+    assert channel.attributes["Value"] is terminal.by_key[ANALOG_POINTS[0].key]
+    assert coe.attributes["Presentation"] is terminal.coe_attributes[0]
+    assert coe.description == "CoE 0x8000 AI Settings"
+    assert "Mode" in terminal.attributes and "AlState" in terminal.attributes
 
 
 def test_types_keep_width_signedness_and_precision() -> None:
@@ -214,8 +247,8 @@ def test_read_only_serves_outputs_and_coe_read_only() -> None:
     root = _root(Recorder(), read_only=True)
     entries = {e.name: e for e in root.pvs()}
 
-    assert entries["TEST:ETH1:RIO1:MOD2:AOOutput"].access == "r"
-    assert entries["TEST:ETH1:RIO1:MOD2:CoePresentation"].access == "r"
+    assert entries["TEST:ETH1:RIO1:MOD2:AOOutput"].access == "r"  # no channel
+    assert entries["TEST:ETH1:RIO1:MOD2:C8000:Presentation"].access == "r"
 
 
 def test_unknown_type_gets_the_generic_controller() -> None:
@@ -252,19 +285,70 @@ async def test_changes_are_posted_and_a_bad_value_only_marks_its_point() -> None
     assert terminal.by_key[samples.key].get().tolist() == list(range(10))
 
 
-async def test_writes_go_once_to_where_the_live_symbol_is() -> None:
+async def test_writes_go_once_by_the_handle_of_their_symbol() -> None:
     recorder = Recorder()
-    terminal = _analog(_root(recorder))
-    mode = terminal.by_key[next(p.key for p in ANALOG_POINTS if "Mode" in p.symbol)]
-    output = terminal.by_key[next(p.key for p in ANALOG_POINTS if "AO" in p.symbol)]
+    root = _root(recorder)
+    master, terminal = root.masters[0], _analog(root)
+    mode_point = next(p for p in ANALOG_POINTS if "Mode" in p.symbol)
+    output_point = next(p for p in ANALOG_POINTS if "AO" in p.symbol)
+    master.handles = PointHandles(
+        writes={mode_point.symbol: 0x101, output_point.symbol: 0x102}
+    )
+    mode = terminal.by_key[mode_point.key]
+    output = terminal.by_key[output_point.key]
     assert isinstance(mode, AttrRW) and isinstance(output, AttrRW)
 
     await mode.put(mode.datatype.validate(5), sync_setpoint=False)
     await output.put(-7, sync_setpoint=False)
+    master.handles = PointHandles(problems={output_point.symbol: "gone"})
+    with pytest.raises(LookupError, match="gone"):
+        await output.put(-8, sync_setpoint=False)
 
-    assert recorder.writes == [(0xF020, 0, b"\x05"), (0xF020, 0, b"\xf9")]
+    assert recorder.writes == [(0xF005, 0x101, b"\x05"), (0xF005, 0x102, b"\xf9")]
     with pytest.raises(ValueError):
         await output.put(1000)  # beyond SINT
+
+
+class Stalling(Recorder):
+    """A target whose writes time out; the read back answers `held`, or
+    times out too when it is None."""
+
+    def __init__(self, held: bytes | None) -> None:
+        super().__init__()
+        self.held = held
+
+    async def write_by_handle(self, handle: int, data: bytes) -> None:
+        raise AdsTimeoutError(0x745, "write", "target")
+
+    async def read_by_handle(self, handle: int, size: int) -> bytes:
+        if self.held is None:
+            raise AdsTimeoutError(0x745, "read", "target")
+        return self.held
+
+
+@pytest.mark.parametrize(
+    ("held", "outcome"),
+    [
+        (b"\xf9", None),  # applied after all: the put succeeds
+        (b"\x00", "the read back shows it was not applied"),
+        (None, "outcome unknown"),
+    ],
+)
+async def test_a_write_that_timed_out_is_decided_by_reading_it_back(
+    held: bytes | None, outcome: str | None
+) -> None:
+    root = _root(Stalling(held))
+    master, terminal = root.masters[0], _analog(root)
+    point = next(p for p in ANALOG_POINTS if "AO" in p.symbol)
+    master.handles = PointHandles(writes={point.symbol: 0x102})
+    output = terminal.by_key[point.key]
+    assert isinstance(output, AttrRW)
+
+    if outcome is None:
+        await output.put(-7, sync_setpoint=False)
+    else:
+        with pytest.raises(Exception, match=outcome):
+            await output.put(-7, sync_setpoint=False)
 
 
 async def test_coe_is_read_on_demand_written_and_read_back() -> None:
@@ -346,7 +430,7 @@ def test_aliases_pin_segments_and_unknown_ones_are_reported() -> None:
     root = _root(Recorder(), pv_aliases=aliases)
     names = {entry.name for entry in root.pvs()}
 
-    assert "TEST:ECAT:RIO1:PIEZO:Pos1" in names
+    assert "TEST:ECAT:RIO1:PIEZO:CH1:Pos1" in names
     assert "TEST:ECAT:RIO1:PIEZO:Mode_RBV" in names
     assert root.names.unused_aliases == ("Device 9 (EtherCAT)",)
 
@@ -371,6 +455,12 @@ async def test_a_scaled_value_is_served_in_its_unit_with_its_raw_count() -> None
     await asyncio.sleep(0.05)
     posting.cancel()
     assert isinstance(volts_out, AttrRW)
+    point_out = next(p for p in ANALOG_POINTS if p.symbol.endswith("AO Volts"))
+    master.handles = PointHandles(problems={point_out.symbol: "gone"})
+    with pytest.raises(LookupError, match="gone"):  # the setpoint says so
+        await volts_out.put(2.5, sync_setpoint=False)
+    refused = master.health.setpoint_alarm(volts_out)
+    master.handles = PointHandles(writes={point_out.symbol: 0x103})
     await volts_out.put(2.5, sync_setpoint=False)
 
     assert served["TEST:ETH1:RIO1:MOD2:AIVolts"].datatype == "ExactFloat"
@@ -380,7 +470,10 @@ async def test_a_scaled_value_is_served_in_its_unit_with_its_raw_count() -> None
     assert (raw_in.get(), volts_in.get()) == (16384, pytest.approx(5.0002, abs=1e-4))
     assert terminal.by_key[point_in.key] is raw_in  # the poller feeds the raw
     assert not isinstance(raw_out, AttrRW)
-    assert recorder.writes[-1] == (0xF020, 0, (8192).to_bytes(2, "little"))
+    assert recorder.writes[-1] == (0xF005, 0x103, (8192).to_bytes(2, "little"))
+    assert (refused.severity, refused.status) == (Severity.INVALID, Status.WRITE)
+    assert master.health.setpoint_alarm(volts_out) == NO_ALARM  # written
+    assert master.shown_by_key[point_out.key] is volts_out
     assert volts_in.description == "EL3104 AI Volts"
     assert raw_in.description == "EL3104 AI Volts raw"
     with pytest.raises(ValueError):

@@ -202,23 +202,20 @@ def test_every_listed_pv_is_served_with_its_type(demo: Demo) -> None:
 def test_compact_and_standard_pdos_of_el3104(demo: Demo) -> None:
     compact = [n for n in demo.pvs if n.startswith(demo.ioc.pv(COMPACT + ":"))]
     standard = [n for n in demo.pvs if n.startswith(demo.ioc.pv(STANDARD + ":"))]
-    values = caget(
-        demo.ioc, *(demo.ioc.pv(f"{COMPACT}:AICompactCh{k}") for k in (1, 2))
-    )
+    values = caget(demo.ioc, *(demo.ioc.pv(f"{COMPACT}:CH{k}:Value") for k in (1, 2)))
 
-    assert {demo.ioc.pv(f"{COMPACT}:AICompactCh{k}") for k in range(1, 5)} <= set(
-        compact
-    )
-    assert not any(":AIStd" in name for name in compact)
-    assert demo.ioc.pv(f"{STANDARD}:AIStdCh1Value") in standard
-    assert all(-10.001 <= float(value) <= 10.0 for value in values.values())
+    assert {demo.ioc.pv(f"{COMPACT}:CH{k}:Value") for k in range(1, 5)} <= set(compact)
+    assert not any(name.endswith(":Underrange") for name in compact)
+    assert demo.ioc.pv(f"{STANDARD}:CH1:Value") in standard
+    assert demo.ioc.pv(f"{STANDARD}:CH1:Underrange") in standard
+    assert all(-10.001 <= float(value) <= 10.0 for value in values.values())  # V
     assert len(values) == 2
 
 
 def test_values_follow_the_simulator(demo: Demo) -> None:
     symbol = "Term 22 (EL3104).AI Standard Channel 1.Value"
     pv = demo.by_source(symbol, datatype="Int")  # the raw count
-    sine = demo.ioc.pv(f"{COMPACT}:AICompactCh1")
+    sine = demo.ioc.pv(f"{COMPACT}:CH1:Value")
     demo.sim.set_symbol(symbol, -4321)
     first = caget(demo.ioc, sine)[sine]
 
@@ -307,13 +304,17 @@ def test_master_and_root_diagnostics(demo: Demo) -> None:
 def test_pvget_pvi_and_screens(demo: Demo) -> None:
     terminal = demo.ioc.pv(COMPACT)
     pvi = demo.ioc.tool("pvget", terminal + ":PVI")
+    channel_pvi = demo.ioc.tool("pvget", terminal + ":CH1:PVI")
     root_pvi = demo.ioc.tool("pvget", demo.ioc.pv("PVI"))
-    screen = demo.screens / f"{demo.ioc.prefix}_ETH1_RIO1_MOD5.bob"
+    screen = demo.screens / "ETH1_RIO1_MOD5.bob"
 
-    assert f"string r {terminal}:AICompactCh1" in pvi
+    assert f"string d {terminal}:CH1:PVI" in pvi
+    assert f"string r {terminal}:AlState" in pvi
+    assert f"string r {terminal}:CH1:Value" in channel_pvi
     assert f"string d {demo.ioc.pv('ETH1:PVI')}" in root_pvi
-    assert screen.is_file()
-    assert f"{terminal}:AICompactCh1" in screen.read_text()
+    assert (demo.screens / "index.bob").is_file()
+    assert f"{terminal}:CH1:Value" in screen.read_text()
+    assert f"{terminal}:AlState" in (demo.screens / "ETH1.bob").read_text()
 
 
 def test_faults_show_and_polling_recovers(demo: Demo) -> None:

@@ -45,13 +45,13 @@ from tests.ioc_support import (
 
 DEMO_CHAIN = REPO_ROOT / "ioc" / "demo-chain.yaml"
 INVALID = 3
-SINE = "ETH1:RIO1:MOD5:AICompactCh1"  # Term 5 (EL3104): moves all the time
-STEADY = "ETH1:RIO21:MOD22:AIStdCh1ValueRaw"  # Term 22 (EL3104): set by tests
+SINE = "ETH1:RIO1:MOD5:CH1:Value"  # Term 5 (EL3104): moves all the time
+STEADY = "ETH1:RIO21:MOD22:CH1:ValueRaw"  # Term 22 (EL3104): set by tests
 STEADY_SYMBOL = "Term 22 (EL3104).AI Standard Channel 1.Value"
 OUTPUT = "Term 24 (EP4374-0002).AO Outputs Channel 3"
-NEIGHBOUR = "ETH1:RIO21:MOD22:AIStdCh2Value"  # same terminal, other symbol
-NEIGHBOUR_STATUS = "ETH1:RIO21:MOD22:AIStdCh1StatusOverrange"  # STEADY's struct
-COE = "ETH1:RIO21:MOD22:CoeOffset"  # Term 22's CoE 0x8000:11, pinned by alias
+NEIGHBOUR = "ETH1:RIO21:MOD22:CH2:Value"  # same terminal, other symbol
+NEIGHBOUR_STATUS = "ETH1:RIO21:MOD22:CH1:Overrange"  # STEADY's struct
+COE = "ETH1:RIO21:MOD22:C8000:CoeOffset"  # Term 22's CoE 0x8000:11, pinned by alias
 COE_PATH = (
     "Device 1 (EtherCAT)^Term 21 (EK1122)^Term 22 (EL3104)"
     "^Coe ai_settings_8000_user_scale_offset"
@@ -319,9 +319,12 @@ def test_sum_read_error_alarms_and_recovers(rig: Rig) -> None:
 
 @pytest.mark.e2e
 def test_item_error_alarms_only_the_failing_symbols_pvs(rig: Rig) -> None:
-    """TwinCAT fails one item of a sum read: that PV goes INVALID (READ), its
-    neighbours in the same terminal and struct and every other PV keep
-    updating; when the item reads again the PV is valid and follows."""
+    """TwinCAT fails one item of a sum read: the PVs of that symbol go
+    INVALID (READ), the terminal's other symbols and every other PV keep
+    updating; when the item reads again the PVs are valid and follow.
+
+    An item is one symbol of the table read by its handle: a member that
+    cannot be read fails its whole structure (`Status` with `Value`)."""
     steady, neighbour = rig.pv(STEADY), rig.pv(NEIGHBOUR)
     start = time.monotonic()
     rig.sim.add_fault("error", code=0x707, symbols=[STEADY_SYMBOL])
@@ -348,7 +351,7 @@ def test_item_error_alarms_only_the_failing_symbols_pvs(rig: Rig) -> None:
 
     assert loss < LOSS_LIMIT_S
     assert updates[SINE] >= 5 and updates[NEIGHBOUR] >= 5, updates
-    assert severities == {SINE: 0, NEIGHBOUR: 0, NEIGHBOUR_STATUS: 0}
+    assert severities == {SINE: 0, NEIGHBOUR: 0, NEIGHBOUR_STATUS: INVALID}
     steady_line = next(line for line in alarms.splitlines() if steady in line)
     assert "INVALID" in steady_line and "READ" in steady_line, alarms
     neighbour_line = next(line for line in alarms.splitlines() if neighbour in line)
@@ -433,6 +436,29 @@ def test_lost_link_alarms_only_that_slave(rig: Rig) -> None:
 
 
 @pytest.mark.e2e
+def test_lost_link_is_judged_per_port(rig: Rig) -> None:
+    """Term 6 loses its link: Term 5 before it reports a missing link on its
+    port B (0x24), which is Term 6's fault, not its own: Term 5's values stay
+    valid and its LinkOk true; only Term 6 alarms."""
+    start = time.monotonic()
+    rig.sim.add_fault("link_lost", name="Term 6 (EL2024)")
+    lost = rig.pv("ETH1:RIO1:MOD6:CH1:Output_RBV")
+    alarmed = wait_for(lambda: "INVALID" in rig.ioc.tool("caget", "-a", lost), 5)
+    before = [rig.pv(f"ETH1:RIO1:MOD5:{leaf}") for leaf in ("LinkOk", "LinkState")]
+    own = [rig.pv(f"ETH1:RIO1:MOD6:{leaf}") for leaf in ("LinkOk", "LinkState")]
+    diagnostics = wait_for(
+        lambda: (found := caget(rig.ioc, *before, *own))[own[1]] != "0" and found, 5
+    )
+    time.sleep(0.5)
+
+    assert alarmed
+    assert diagnostics[before[0]] == "True" and diagnostics[before[1]] == "36"
+    assert diagnostics[own[0]] == "False" and diagnostics[own[1]] == "1"
+    assert rig.watch.first(rig.pv(SINE), start, INVALID) is None
+    assert rig.watch.severity(rig.pv(SINE)) == 0
+
+
+@pytest.mark.e2e
 def test_online_change_resolves_again_without_restart(rig: Rig) -> None:
     pid = rig.ioc.process.pid
     version = int(rig.root("SymbolVersion"))
@@ -454,7 +480,7 @@ def test_writes_are_checked_rejected_while_away_and_alarm_on_error(
     rig: Rig,
 ) -> None:
     ioc = rig.ioc
-    pv = rig.pv("ETH1:RIO21:MOD24:AOOutputsCh3")
+    pv = rig.pv("ETH1:RIO21:MOD24:CH3:AnalogOutput")
     ioc.tool("caput", pv, "321")
     assert wait_for(lambda: rig.sim.get_symbol(OUTPUT) == 321, 10)
 
@@ -465,8 +491,8 @@ def test_writes_are_checked_rejected_while_away_and_alarm_on_error(
     time.sleep(1.0)
     kept = rig.sim.get_symbol(OUTPUT)
 
-    # outputs are in group 0xF020 on the device port (sim/layout.py)
-    rig.sim.add_fault("error", code=1793, group=0xF020)
+    # writes go by handle: group 0xF005 (value by handle) on the device port
+    rig.sim.add_fault("error", code=1793, group=0xF005)
     ioc.tool("caput", pv, "987")
     alarm = ioc.tool("caget", "-a", pv)
     rig.sim.clear_faults()

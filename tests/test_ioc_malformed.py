@@ -35,7 +35,7 @@ from tests.malformed_ads import HostileProxy, ProxyThread
 pytestmark = pytest.mark.e2e
 
 DEMO_CHAIN = REPO_ROOT / "ioc" / "demo-chain.yaml"
-SINE = "ETH1:RIO1:MOD5:AICompactCh1"  # moves all the time
+SINE = "ETH1:RIO1:MOD5:CH1:Value"  # moves all the time
 MALFORMED_FRAMES = 1000
 LOG_LINES_PER_MINUTE = 100
 

@@ -1,5 +1,6 @@
-"""The poller against the simulator (real subprocess, real pyads): sum reads,
-changed values only, per-item errors, writes and the timed loop."""
+"""The poller against the simulator (a real subprocess): sum reads by symbol
+handle, changed values only, per-item errors, handles an online change
+invalidates, writes by handle and the timed loop."""
 
 from __future__ import annotations
 
@@ -11,13 +12,15 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from fastcs_ethercat.ads.client import AdsClient
+from fastcs_ethercat.ads.client import AdsClient, AdsHandleInvalidError
+from fastcs_ethercat.ads.constants import AdsReturnCode
 from fastcs_ethercat.ioc.clients import ClientPool
 from fastcs_ethercat.ioc.config import IocConfig
 from fastcs_ethercat.ioc.decode import PollLayout
 from fastcs_ethercat.ioc.discovery import discover
+from fastcs_ethercat.ioc.handles import PointHandles, acquire
 from fastcs_ethercat.ioc.plan import Point, PointKind, SystemPlan
-from fastcs_ethercat.ioc.poller import Poller
+from fastcs_ethercat.ioc.poller import Poller, pack_write
 from fastcs_ethercat.sim.process import SimProcess
 from fastcs_ethercat.terminals import load_terminals
 from tests.conftest import REPO_ROOT, TERMINALS_DIR
@@ -80,13 +83,36 @@ def key(symbol: str) -> str:
     return f"Device 1 (EtherCAT)/{symbol}"
 
 
+async def poller_of(
+    client: AdsClient, points: list[Point], recorder: Recorder, **options: int
+) -> Poller:
+    """A poller of `points` by freshly taken handles (every one must have one)."""
+    handles = await acquire(client, points)
+    assert handles.problems == {}
+    return Poller(
+        client,
+        points,
+        handles.reads,
+        recorder.on_changes,
+        recorder.on_errors,
+        **options,
+    )
+
+
+async def write(
+    client: AdsClient, handles: PointHandles, point: Point, value: object
+) -> None:
+    await client.write_by_handle(handles.writes[point.symbol], pack_write(point, value))
+
+
 @pytest.mark.e2e
 async def test_one_sum_read_per_cycle(
     sim: SimProcess, plan: SystemPlan, client: AdsClient
 ) -> None:
     points = all_points(plan)
-    poller = Poller(client, points, Recorder().on_changes)
-    assert poller.layout.item_count < len(points)  # shared words read once
+    poller = await poller_of(client, points, Recorder())
+    sources = {p.source_name for p in points}
+    assert poller.layout.item_count == len(sources) < len(points)  # a symbol once
     sim.reset_counters()
     await poller.poll_once()
     counters = sim.counters()
@@ -99,18 +125,22 @@ async def test_one_sum_read_per_cycle(
 async def test_more_than_500_points_in_500_item_requests(
     sim: SimProcess, client: AdsClient
 ) -> None:
-    """1 200 single bits of the input bit image: 1 200 items, 3 requests."""
+    """1 200 handles the target never gave: 1 200 items in 3 requests, each
+    answered with its own error."""
     points = [
         Point(f"bit{n}", f"bit{n}", f"bit{n}", "BIT", PointKind.BIT, 0xF031, n, 1)
         for n in range(1200)
     ]
     recorder = Recorder()
-    poller = Poller(client, points, recorder.on_changes, recorder.on_errors)
+    handles = {f"bit{n}": 0x7000_0000 + n for n in range(1200)}
+    poller = Poller(client, points, handles, recorder.on_changes, recorder.on_errors)
     sim.reset_counters()
     await poller.poll_once()
     assert sim.counters()["index_groups"] == {SUM_READ: math.ceil(1200 / 500)}
-    assert recorder.errors == []
-    assert len(recorder.changes[0]) == 1200
+    assert recorder.changes == []
+    [errors] = recorder.errors
+    assert len(errors) == 1200
+    assert {code for _, code in errors} == {AdsReturnCode.DEVICE_SYMBOL_NOT_FOUND}
 
 
 @pytest.mark.e2e
@@ -118,7 +148,7 @@ async def test_requests_split_at_the_chunk_size(
     sim: SimProcess, plan: SystemPlan, client: AdsClient
 ) -> None:
     points = all_points(plan)
-    poller = Poller(client, points, Recorder().on_changes, chunk_size=25)
+    poller = await poller_of(client, points, Recorder(), chunk_size=25)
     sim.reset_counters()
     await poller.poll_once()
     requests = sim.counters()["index_groups"][SUM_READ]
@@ -132,7 +162,7 @@ async def test_first_cycle_all_then_only_changes(
 ) -> None:
     points = all_points(plan)
     recorder = Recorder()
-    poller = Poller(client, points, recorder.on_changes, recorder.on_errors)
+    poller = await poller_of(client, points, recorder)
     await poller.poll_once()
     assert {p.key for p, _ in recorder.changes[0]} == {p.key for p in points}
     assert recorder.errors == []
@@ -158,7 +188,7 @@ async def test_values_follow_the_signals(
     sine = key("Term 5 (EL3104).AI Compact Channel 1")
     points = [by_key(plan)[sine]]
     recorder = Recorder()
-    poller = Poller(client, points, recorder.on_changes)
+    poller = await poller_of(client, points, recorder)
     seen: list[object] = []
     for _ in range(5):
         await poller.poll_once()
@@ -184,7 +214,7 @@ async def test_arrays_bits_and_counters_decoded(
     sim.set_symbol("Term 2 (EL1014).Channel 3", True)
     sim.set_symbol("Term 14 (EL3702).Ch1 Sample 0", list(range(-5, 5)))
     recorder = Recorder()
-    await Poller(client, chosen, recorder.on_changes).poll_once()
+    await (await poller_of(client, chosen, recorder)).poll_once()
     values = recorder.last()
     samples = values[chosen[0].key]
     assert isinstance(samples, np.ndarray)
@@ -198,9 +228,12 @@ async def test_item_errors_do_not_stop_the_others(
     plan: SystemPlan, client: AdsClient
 ) -> None:
     good = all_points(plan)[:20]
-    bad = replace(good[0], key="bad", symbol="bad", index_offset=1_000_000)
+    bad = replace(good[0], key="bad", symbol="bad", source="bad")
     recorder = Recorder()
-    poller = Poller(client, [*good, bad], recorder.on_changes, recorder.on_errors)
+    handles = (await acquire(client, good)).reads | {"bad": 0x7FFF_FFFF}
+    poller = Poller(
+        client, [*good, bad], handles, recorder.on_changes, recorder.on_errors
+    )
     await poller.poll_once()
     assert {p.key for p, _ in recorder.changes[0]} == {p.key for p in good}
     [errors] = recorder.errors
@@ -214,7 +247,7 @@ async def test_whole_read_failure_reported_then_recovered(
 ) -> None:
     points = all_points(plan)[:10]
     recorder = Recorder()
-    poller = Poller(client, points, recorder.on_changes, recorder.on_errors)
+    poller = await poller_of(client, points, recorder)
     await poller.poll_once()
     sim.add_fault("error", code=0x708, group=0xF080)
     await poller.poll_once()
@@ -227,34 +260,85 @@ async def test_whole_read_failure_reported_then_recovered(
 
 
 @pytest.mark.e2e
-async def test_writes_reach_the_simulator(
+async def test_writes_by_handle_reach_only_their_own_bits(
     sim: SimProcess, plan: SystemPlan, client: AdsClient
 ) -> None:
     points = by_key(plan)
-    poller = Poller(client, list(points.values()), Recorder().on_changes)
-    await poller.write_point(points[key("Term 6 (EL2024).Channel 2")], True)
+    handles = await acquire(client, list(points.values()))
+    await write(client, handles, points[key("Term 6 (EL2024).Channel 2")], True)
     assert sim.get_symbol("Term 6 (EL2024).Channel 2") is True
     assert sim.get_symbol("Term 6 (EL2024).Channel 1") is False
-    await poller.write_point(points[key("Term 15 (EL4134).AO Output Channel 3")], -1000)
+    analog = points[key("Term 15 (EL4134).AO Output Channel 3")]
+    await write(client, handles, analog, -1000)
     assert sim.get_symbol("Term 15 (EL4134).AO Output Channel 3") == -1000
     outputs = "Term 8 (EL1502).CNT Outputs Channel 1"
-    await poller.write_point(points[key(f"{outputs}.Control.Set counter")], True)
-    await poller.write_point(points[key(f"{outputs}.Control.Set output")], True)
-    await poller.write_point(points[key(f"{outputs}.Set counter value")], 4242)
-    await poller.write_point(points[key(f"{outputs}.Control.Set output")], False)
+    # Bits of one control word, each by its own handle: no read-modify-write.
+    await write(client, handles, points[key(f"{outputs}.Control.Set counter")], True)
+    await write(client, handles, points[key(f"{outputs}.Control.Set output")], True)
+    await write(client, handles, points[key(f"{outputs}.Set counter value")], 4242)
+    await write(client, handles, points[key(f"{outputs}.Control.Set output")], False)
     state = sim.get_symbol(outputs)
     assert state["Control"]["Set counter"] is True
     assert state["Control"]["Set output"] is False
     assert state["Set counter value"] == 4242
     samples = list(range(100, 110))
-    await poller.write_point(points[key("Term 16 (EL4732).Ch2 Sample 0")], samples)
+    await write(client, handles, points[key("Term 16 (EL4732).Ch2 Sample 0")], samples)
     assert sim.get_symbol("Term 16 (EL4732).Ch2 Sample 0") == samples
+
+
+@pytest.mark.e2e
+async def test_an_online_change_fails_reads_and_writes_by_old_handles(
+    sim: SimProcess, plan: SystemPlan, client: AdsClient
+) -> None:
+    """After the change the old handles read and write nothing: every item
+    fails with 0x711 (nothing is handed on as a value) and a write raises;
+    new handles work."""
+    points = all_points(plan)
+    recorder = Recorder()
+    handles = await acquire(client, points)
+    poller = Poller(
+        client, points, handles.reads, recorder.on_changes, recorder.on_errors
+    )
+    await poller.poll_once()
+    output = by_key(plan)[key("Term 15 (EL4134).AO Output Channel 2")]
+    before = sim.get_symbol(output.symbol)
+    sim.add_fault("online_change")
+    recorder.changes.clear()
+    await poller.poll_once()
+    with pytest.raises(AdsHandleInvalidError):
+        await write(client, handles, output, before + 1)
+    fresh = await acquire(client, points)
+    await write(client, fresh, output, before + 2)
+
+    [errors] = recorder.errors
+    assert recorder.changes == []
+    assert {p.key for p, _ in errors} == {p.key for p in points}
+    assert {code for _, code in errors} == {AdsReturnCode.DEVICE_SYMBOL_VERSION_INVALID}
+    assert sim.get_symbol(output.symbol) == before + 2
+    assert set(fresh.reads) == set(handles.reads)
+
+
+@pytest.mark.e2e
+async def test_a_symbol_whose_shape_changed_gets_no_read_handle(
+    plan: SystemPlan, client: AdsClient
+) -> None:
+    """A handle is taken with the symbol's description: a symbol that is not
+    what discovery saw (another size) is a problem, not a handle."""
+    sample = by_key(plan)[key("Term 14 (EL3702).Ch1 Sample 0")]
+    resized = replace(sample, source_size=sample.source_size + 2)
+    gone = replace(sample, key="gone", source="Term 14 (EL3702).Ch9 Sample 0")
+    handles = await acquire(client, [resized, gone])
+
+    assert handles.reads == {}
+    assert "bytes) at discovery" in handles.problems[sample.source_name]
+    assert handles.problems[gone.source_name] == "not in the symbol table any more"
+    assert handles.read_problem(resized) == handles.problems[sample.source_name]
 
 
 @pytest.mark.e2e
 async def test_run_keeps_its_rate(plan: SystemPlan, client: AdsClient) -> None:
     recorder = Recorder()
-    poller = Poller(client, all_points(plan), recorder.on_changes)
+    poller = await poller_of(client, all_points(plan), recorder)
     task = asyncio.create_task(poller.run(50.0))
     await asyncio.sleep(0.5)
     poller.stop()
@@ -292,26 +376,26 @@ def synthetic(
     )
 
 
-def test_layout_merges_shared_bytes_only() -> None:
+def test_layout_reads_each_source_once_up_to_its_last_needed_byte() -> None:
     word_bits = [
-        synthetic(f"b{n}", 10, 2, PointKind.BIT, bit_offset=n, bit_size=1)
+        replace(
+            synthetic(f"b{n}", 10, 2, PointKind.BIT, bit_offset=n, bit_size=1),
+            source="status",
+        )
         for n in (0, 9, 15)
     ]
-    value = synthetic("v", 12, 2)
-    inside = synthetic("inside", 11, 1)
-    wc = [
-        replace(synthetic(f"wc{n}", 7, 1, PointKind.BIT), index_group=0xF031)
-        for n in range(3)
-    ]
-    layout = PollLayout.build([*word_bits, value, inside, *wc])
+    value = replace(synthetic("v", 12, 2), source="status", source_offset=2)
+    wc = [synthetic(f"wc{n}", 7, 1, PointKind.BIT) for n in range(2)]
+    handles = {"status": 0x101, "wc0": 0x102, "wc1": 0x103}
+    layout = PollLayout.build([*word_bits, value, *wc], handles)
     items = [
         (i.index_group, i.index_offset, i.length)
         for c in layout.chunks
         for i in c.items
     ]
-    # Bits of one word and a byte inside it: one item; the adjacent value is
-    # its own item; the WcState bit many terminals share is read once.
-    assert items == [(0xF030, 10, 2), (0xF030, 12, 2), (0xF031, 7, 1)]
+    # A structure's bits and value: one item by its handle, 4 bytes; each
+    # bit symbol its own one-byte item (0xF005: value by handle).
+    assert items == [(0xF005, 0x101, 4), (0xF005, 0x102, 1), (0xF005, 0x103, 1)]
 
 
 def test_decode_reports_only_changed_bits_and_values() -> None:
@@ -320,9 +404,12 @@ def test_decode_reports_only_changed_bits_and_values() -> None:
         for n in (1, 8, 15)
     ]
     field = synthetic("f", 0, 2, PointKind.BITS, bit_offset=6, bit_size=3)
-    value = synthetic("v", 2, 2)
-    layout = PollLayout.build([*bits, field, value])
+    value = replace(synthetic("v", 2, 2), source="w", source_offset=2)
+    parts = [replace(p, source="w") for p in [*bits, field]]
+    layout = PollLayout.build([*parts, value], {"w": 1})
     [chunk] = layout.chunks
+
+    assert len(chunk.items) == 1
 
     def answer(word: int, number: int) -> bytes:
         head = bytes(4 * len(chunk.items))

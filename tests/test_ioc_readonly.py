@@ -40,12 +40,12 @@ masters:
   - type: EL4134
   - type: EL3104
 """
-DIGITAL_OUT = "ETH1:RIO1:MOD2:Ch3"
+DIGITAL_OUT = "ETH1:RIO1:MOD2:CH3:Output"
 DIGITAL_SYMBOL = "Term 2 (EL2024).Channel 3"
-ANALOG_OUT = "ETH1:RIO1:MOD3:AOOutputCh1"
+ANALOG_OUT = "ETH1:RIO1:MOD3:CH1:AnalogOutput"
 ANALOG_SYMBOL = "Term 3 (EL4134).AO Output Channel 1"
-INPUT = "ETH1:RIO1:MOD4:AIStdCh1Value"
-COE = "ETH1:RIO1:MOD4:CoeOffset"
+INPUT = "ETH1:RIO1:MOD4:CH1:Value"
+COE = "ETH1:RIO1:MOD4:C8000:CoeOffset"
 COE_PATH = (
     "Device 1 (EtherCAT)^Term 1 (EK1100)^Term 4 (EL3104)"
     "^Coe ai_settings_8000_user_scale_offset"

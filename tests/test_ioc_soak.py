@@ -70,7 +70,7 @@ def test_soak_faults_monitor_and_writes(tmp_path: Path) -> None:
             sine = ioc.pv(SINE)
             rig = Rig(sim, ioc, watch, {})
             assert rig.all_back(30)
-            out = ioc.pv("ETH1:RIO21:MOD24:AOOutputsCh3")
+            out = ioc.pv("ETH1:RIO21:MOD24:CH3:AnalogOutput")
             before = _resources(ioc.process.pid)
             accepted: list[int] = []
             held: list[tuple[str, bool, Any]] = []

@@ -8,7 +8,6 @@ time and alarm (`Health.follow`).
 
 from __future__ import annotations
 
-import asyncio
 import enum
 from typing import Any
 
@@ -113,9 +112,13 @@ async def test_a_scaled_value_follows_its_raw_count() -> None:
     alarmed = _alarm(volts_pv)["severity"]
     await health.post(raw, -32767, 51.0)  # a fresh value ends a READ alarm
     after = (raw.get(), volts.get(), health.invalid_count)
-    health.write_failed(raw, "refused")
-    await asyncio.sleep(0)  # the write alarm comes after FastCS's own
-    written = _alarm(volts_pv)
+    seen: list[tuple[Any, Any]] = []
+
+    async def watch(attribute: Any, value: Any) -> None:  # as ioc.setpoints does
+        seen.append((attribute, value))
+
+    health.watch_value(volts, watch)  # an output's setpoint waits for the PLC
+    await health.post(raw, 0, 52.0)
 
     assert first[0] == 16384
     assert first[1] == pytest.approx(5.0002, abs=1e-4)
@@ -123,4 +126,4 @@ async def test_a_scaled_value_follows_its_raw_count() -> None:
     assert both_invalid == (True, True) and alarmed == Severity.INVALID
     assert after[:2] == (-32767, pytest.approx(-10.0))
     assert after[2] == 0
-    assert written["severity"] == Severity.INVALID
+    assert seen == [(volts, 0.0)]  # the PLC's value, in volts

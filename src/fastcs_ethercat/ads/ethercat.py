@@ -66,6 +66,21 @@ class LinkState(IntFlag):
     PORT_C = 0x40
     PORT_D = 0x80
 
+    def own_fault(self) -> bool:
+        """Whether the slave itself is cut off, judged per port: not present,
+        or no link (or no communication) on its incoming port A or on no port
+        named. The same flags on port B, C or D are about the neighbour
+        beyond that port (the slave before a lost one reports MISSING_LINK on
+        B), an additional link is a topology note: neither is this slave's."""
+        if self & LinkState.NOT_PRESENT:
+            return True
+        if not self & (LinkState.NO_COMMUNICATION | LinkState.MISSING_LINK):
+            return False
+        ports = self & (
+            LinkState.PORT_A | LinkState.PORT_B | LinkState.PORT_C | LinkState.PORT_D
+        )
+        return not ports or bool(ports & LinkState.PORT_A)
+
 
 def _u16_array(raw: bytes | bytearray | memoryview, what: str) -> tuple[int, ...]:
     if len(raw) % 2:

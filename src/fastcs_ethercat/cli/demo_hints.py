@@ -22,7 +22,9 @@ from typing import Final
 
 from fastcs_ethercat.cli.ports import CA_SERVER_PORT, PVA_SERVER_PORT, DemoPorts
 
-NUMBER_PV_SUFFIX: Final = ":AICompactCh1"
+NUMBER_PV_SUFFIX: Final = ":MOD5:CH1:Value"
+"""The demo's first EL3104 (`Term 5`): a sine."""
+CHANNEL_VALUE: Final = ":CH1:Value"
 TEXT_PV_SUFFIX: Final = ":AlStateText"
 TOOLS_EXTRA: Final = "pip install 'fastcs-ethercat[tools]'"
 
@@ -46,7 +48,7 @@ class DemoHints:
 
     def try_lines(self) -> list[str]:
         number = self._first(NUMBER_PV_SUFFIX)
-        same_terminal = number.rsplit(":", 1)[0] + TEXT_PV_SUFFIX
+        same_terminal = number.removesuffix(CHANNEL_VALUE) + TEXT_PV_SUFFIX
         text = (
             same_terminal
             if same_terminal in self.names

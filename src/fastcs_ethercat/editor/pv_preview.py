@@ -1,9 +1,11 @@
 """The PV names a terminal's selected symbols and CoE objects will get.
 
 Named by the IOC's own planner (`ioc.naming.plan_pv_names`), so the preview
-shortens exactly as the IOC will. The engineer types the PV prefix of one
-terminal of the type (`BL45P-MO-IOC-01:ETH1:RIO1:MOD5`); the three trailing
-segments say which master, coupler and terminal position to name.
+shortens as the IOC will. The engineer types the PV prefix of one terminal
+of the type (`BL45P-MO-IOC-01:ETH1:RIO1:MOD5`); the three trailing segments
+say which master, coupler and terminal position to name. The IOC budgets
+each level by the longest of its whole chain: type a terminal number of as
+many digits as the chain's longest (`MOD105` on a rack of over 99).
 """
 
 from __future__ import annotations
@@ -18,8 +20,12 @@ from fastcs_ethercat.ioc.naming import (
     Node,
     NodeKind,
     PvRequest,
+    coe_request,
     plan_pv_names,
+    symbol_request,
+    twin_request,
 )
+from fastcs_ethercat.ioc.resolve import coe_points
 from fastcs_ethercat.terminals.meaning import RAW_SUFFIX, has_raw_twin
 from fastcs_ethercat.terminals.model import TerminalType
 from fastcs_ethercat.terminals.symbols import expanded_symbols
@@ -54,16 +60,18 @@ class PvPreview:
 
 @dataclass(frozen=True)
 class _Leaf:
-    leaf: str
+    request: PvRequest
     source: str
-    writable: bool
     node: int | None = None
     channel: int | None = None
     member: str | None = None
 
 
-def _leaves(terminal: TerminalType, terminal_name: str) -> list[_Leaf]:
-    """One leaf per PV of the selected symbols and CoE objects."""
+def _leaves(
+    terminal: TerminalType, terminal_name: str, path: tuple[Node, ...]
+) -> list[_Leaf]:
+    """One leaf per PV of the selected symbols and CoE objects, requested as
+    the IOC requests its points (`ioc.controllers.tree.terminal_requests`)."""
     leaves: list[_Leaf] = []
     for symbol in expanded_symbols(terminal, selected_only=True):
         writable = symbol.direction == "output"
@@ -71,36 +79,47 @@ def _leaves(terminal: TerminalType, terminal_name: str) -> list[_Leaf]:
         where = {"node": symbol.node_index, "channel": symbol.channel}
         if symbol.type_name.endswith("_TYPE") and symbol.members:
             for member in symbol.members:
-                path = f"{name}.{'.'.join(member.path)}"
-                leaves.append(_Leaf(path, path, writable, member=member.name, **where))
+                entry_name = ".".join(member.path)
+                leaf = f"{name}.{entry_name}"
+                request = symbol_request(
+                    path,
+                    leaf,
+                    entry_name=entry_name,
+                    channel=symbol.channel,
+                    writable=writable,
+                )
+                leaves.append(_Leaf(request, leaf, member=member.name, **where))
                 if has_raw_twin(member.scaling):
-                    raw = path + RAW_SUFFIX
-                    leaves.append(_Leaf(raw, path, False, member=member.name, **where))
+                    leaves.append(_raw_twin(request, leaf, member.name, **where))
         else:
-            leaves.append(_Leaf(name, name, writable, **where))
-            if len(symbol.members) == 1 and has_raw_twin(symbol.members[0].scaling):
-                leaves.append(_Leaf(name + RAW_SUFFIX, name, False, **where))
-    for obj in terminal.coe_objects:
-        if not obj.selected:
-            continue
-        if not obj.sub_items:
-            leaves.append(
-                _Leaf(
-                    COE_LEAF_PREFIX + obj.fastcs_name,
-                    f"CoE 0x{obj.index:04x}",
-                    obj.access in ("rw", "wo"),
-                )
+            request = symbol_request(
+                path,
+                name,
+                entry_name=symbol.entry_name,
+                channel=symbol.channel,
+                writable=writable,
             )
-        for sub in obj.sub_items:
-            if sub.selected:
-                leaves.append(
-                    _Leaf(
-                        f"{COE_LEAF_PREFIX}{obj.fastcs_name}_{sub.fastcs_name}",
-                        f"CoE 0x{obj.index:04x}:{sub.subindex:02x}",
-                        (sub.access or obj.access) in ("rw", "wo"),
-                    )
-                )
+            leaves.append(_Leaf(request, name, **where))
+            if len(symbol.members) == 1 and has_raw_twin(symbol.members[0].scaling):
+                leaves.append(_raw_twin(request, name, None, **where))
+    for coe in coe_points(terminal):
+        request = coe_request(path, COE_LEAF_PREFIX + coe.attribute, coe)
+        sub = f":{coe.subindex:02x}" if coe.subindex else ""
+        source = f"CoE 0x{coe.index:04x}{sub}"
+        leaves.append(_Leaf(request, source))
     return leaves
+
+
+def _raw_twin(
+    value: PvRequest,
+    source: str,
+    member: str | None,
+    node: int | None,
+    channel: int | None,
+) -> _Leaf:
+    """The leaf of a scaled value's raw count, beside it (as the IOC serves it)."""
+    leaf = source + RAW_SUFFIX
+    return _Leaf(twin_request(value, leaf, RAW_SUFFIX), source, node, channel, member)
 
 
 def preview_pvs(terminal: TerminalType, type_name: str, prefix: str) -> list[PvPreview]:
@@ -119,23 +138,18 @@ def preview_pvs(terminal: TerminalType, type_name: str, prefix: str) -> list[PvP
         Node(NodeKind.COUPLER, f"Term {int(found['c'])} (EK1100)"),
         Node(NodeKind.TERMINAL, terminal_name),
     )
-    leaves = _leaves(terminal, terminal_name)
-    names = plan_pv_names(found["ioc"], [PvRequest(path, item.leaf) for item in leaves])
-    why = {s.source.rsplit("^", 1)[-1]: s.reason for s in names.shortened}
-    relative = len(terminal_name) + 1
+    leaves = _leaves(terminal, terminal_name, path)
+    names = plan_pv_names(found["ioc"], [item.request for item in leaves])
+    why = {s.node: s.reason for s in names.shortened}
     return [
         PvPreview(
             source=item.source,
-            pv=names.pv(PvRequest(path, item.leaf)),
-            writable=item.writable,
+            pv=names.pv(item.request),
+            writable=item.request.writable,
             node=item.node,
             channel=item.channel,
             member=item.member,
-            shortened=why.get(
-                item.leaf[relative:]
-                if item.leaf.startswith(terminal_name)
-                else item.leaf
-            ),
+            shortened=why.get(item.request),
         )
         for item in leaves
     ]

@@ -23,6 +23,7 @@ from fastcs.attributes import Attribute
 
 from fastcs_ethercat.ioc import fastcs_adapter
 from fastcs_ethercat.ioc.datatypes import severity_table
+from fastcs_ethercat.ioc.fastcs_adapter import Parts
 
 
 class Severity(IntEnum):
@@ -122,15 +123,17 @@ def set_alarm(
     severity: Severity,
     status: Status,
     message: str = "",
+    parts: Parts = Parts.ALL,
 ) -> int:
-    """Raise `attribute`'s PVs to this alarm, value unchanged; PVs reached."""
-    return publish_alarm(attribute, AlarmState(severity, status, message))
+    """Raise `attribute`'s PVs (of `parts`) to this alarm, value unchanged;
+    PVs reached."""
+    return publish_alarm(attribute, AlarmState(severity, status, message), parts)
 
 
-def clear_alarm(attribute: Attribute[Any, Any]) -> int:
-    """Return `attribute`'s PVs to the alarm of their value (`value_alarm`),
-    value unchanged; PVs reached."""
-    return publish_alarm(attribute, value_alarm(attribute))
+def clear_alarm(attribute: Attribute[Any, Any], parts: Parts = Parts.ALL) -> int:
+    """Return `attribute`'s PVs (of `parts`) to the alarm of their value
+    (`value_alarm`), value unchanged; PVs reached."""
+    return publish_alarm(attribute, value_alarm(attribute), parts)
 
 
 def set_alarms(
@@ -144,8 +147,11 @@ def set_alarms(
     return sum(publish_alarm(attribute, state) for attribute in attributes)
 
 
-def publish_alarm(attribute: Attribute[Any, Any], state: AlarmState) -> int:
-    """Publish `state` on every CA record and PVA PV of `attribute`."""
+def publish_alarm(
+    attribute: Attribute[Any, Any], state: AlarmState, parts: Parts = Parts.ALL
+) -> int:
+    """Publish `state` on the CA records and PVA PVs of `attribute` (of
+    `parts`: its readback, its setpoint or both)."""
     return fastcs_adapter.endpoints_of(attribute).publish_alarm(
-        int(state.severity), int(state.status), state.pva_message()
+        int(state.severity), int(state.status), state.pva_message(), parts
     )

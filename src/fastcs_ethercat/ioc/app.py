@@ -71,15 +71,19 @@ def serve(
         if on_ready is not None:
             on_ready(root)
 
+    def built() -> None:
+        if config.screens_dir is not None:
+            from fastcs_ethercat.ioc.screens.chain import write_screens
+
+            write_screens(root, config.screens_dir, ca=config.transports.ca)
+
     options = LaunchOptions(
         ca=config.transports.ca,
         pva=config.transports.pva,
-        screens_dir=config.screens_dir,
-        screens_title=f"EtherCAT {config.prefix}",
         access_security_file=config.access_security_file,
         read_only=config.read_only,
     )
-    run(root, config.prefix, options, on_ready=ready)
+    run(root, config.prefix, options, on_ready=ready, on_built=built)
 
 
 def list_pvs(config: IocConfig) -> tuple[list[PvEntry], list[str]]:

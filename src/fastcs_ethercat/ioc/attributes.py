@@ -112,6 +112,15 @@ def to_engineering(scaling: Scaling) -> Callable[[Any], Any]:
     return convert
 
 
+def engineering_value(point: Point, raw: Any) -> Any:
+    """A count the device takes as the point's PV shows it (what a write's
+    setpoint shows: the count written, not the value asked for)."""
+    scaling = point.scaling
+    if scaling is None or not has_raw_twin(scaling):
+        return raw
+    return to_engineering(scaling)(np.asarray(raw) if isinstance(raw, list) else raw)
+
+
 def from_engineering(point: Point, value: Any) -> Any:
     """An engineering value as the count the device takes: the nearest count
     for an integer type (outside its range, the write is refused)."""

@@ -113,7 +113,8 @@ class IocConfig(_Strict):
     """Everything one IOC instance needs to know."""
 
     prefix: str
-    """PV prefix: every PV is <prefix>:<master>:<coupler>:<terminal>:<symbol>."""
+    """PV prefix (at most 22 characters): every PV is
+    <prefix>:<master>:<coupler>:<terminal>[:<channel>]:<name>."""
     target: str
     """TwinCAT host (or the simulator), `host` or `host:port` (ADS TCP)."""
     ams_net_id: str | None = None
@@ -136,12 +137,13 @@ class IocConfig(_Strict):
     relative to this file. Default: the terminal types shipped with
     fastcs-ethercat (a list given here replaces them)."""
     pv_aliases: dict[str, str] = Field(default_factory=dict)
-    """Pin a PV segment: TwinCAT path (names joined with ^) -> PascalCase."""
+    """Pin a PV segment: TwinCAT path (names joined with ^) -> PascalCase,
+    different from every other name of the same controller."""
     transports: TransportsConfig = TransportsConfig()
     """Which EPICS protocols to serve."""
     screens_dir: Path | None = None
-    """Where to write Phoebus .bob screens (relative to this file; in the
-    image /epics/opi); none when unset."""
+    """Where to write Phoebus .bob screens of the chain (relative to this
+    file; in the image /epics/opi); none when unset."""
     read_only: bool = False
     """Serve outputs (RxPDO symbols, CoE objects) read-only."""
     access_security_file: Path | None = None

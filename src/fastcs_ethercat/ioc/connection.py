@@ -5,7 +5,8 @@ creates it, its `Reconnection` component ties its state to the supervisor's
 (and reopens the pool), and every
 master and terminal asks it for clients and whether a request may go out.
 Nothing below the root ever calls back up; a master that sees a whole poll
-cycle fail `wake`s the supervisor through it.
+cycle fail `wake`s the supervisor through it, and one whose symbol handles
+went invalid asks it to `resync`.
 """
 
 from __future__ import annotations
@@ -30,6 +31,9 @@ class Connection:
     """The supervisor's view of the link (set by the root's reconnection)."""
     wake: Callable[[], None] = field(default=lambda: None)
     """Ask the supervisor to probe now (set by the root's reconnection)."""
+    resync: Callable[[str], None] = field(default=lambda why: None)
+    """Ask the supervisor to resolve every symbol again, saying why (a
+    symbol handle went invalid: the table changed, whatever 0xF008 says)."""
 
     @property
     def state(self) -> LinkState:

@@ -1,7 +1,7 @@
 """The hot path's bookkeeping: points -> sum-read items -> one numpy view.
 
-Points that share bytes (bits of one status word, a member inside a symbol
-that is read anyway, the WcState bit many terminals share) are served by one
+Every point is read through the handle of its source symbol (`ioc.handles`):
+points of one symbol (its members, the bits of its status word) share one
 sum-read item. Each request's answer is viewed with one structured dtype (a
 field per point, at the point's byte in the answer); change detection compares
 the answer's bytes with the previous answer's, vectorised, and only changed
@@ -10,14 +10,14 @@ points are converted to Python values.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
-from fastcs_ethercat.ads.constants import MAX_SUM_SUB_COMMANDS
+from fastcs_ethercat.ads.constants import MAX_SUM_SUB_COMMANDS, IndexGroup
 from fastcs_ethercat.ads.errors import AdsCodecError
 from fastcs_ethercat.ads.sums import SumReadItem, SumReadLayout
 from fastcs_ethercat.ads.values import parse_type
@@ -25,42 +25,31 @@ from fastcs_ethercat.ioc.plan import Point, PointKind
 
 
 def plan_items(
-    points: Sequence[Point],
+    points: Sequence[Point], handles: Mapping[str, int]
 ) -> tuple[list[SumReadItem], list[tuple[int, int]]]:
-    """Merge overlapping byte ranges per group into sum-read items.
+    """One sum-read item per source symbol: its read handle (0xF005), read
+    from its first byte to the last byte any of its points needs (a read by
+    handle shorter than the symbol gets its first bytes).
 
     Returns the items and, per point, (item index, byte offset in the item).
+    Every point's source must have a handle.
     """
-    order = sorted(
-        range(len(points)),
-        key=lambda i: (points[i].index_group, points[i].index_offset),
-    )
-    items: list[SumReadItem] = []
-    where: list[tuple[int, int]] = [(0, 0)] * len(points)
-    group = start = end = -1
-    members: list[int] = []
-
-    def close() -> None:
-        if members:
-            items.append(SumReadItem(group, start, end - start))
-            for i in members:
-                where[i] = (len(items) - 1, points[i].index_offset - start)
-
-    for i in order:
-        point = points[i]
-        size = max(point.byte_size, 1)
-        if point.index_group == group and point.index_offset < end:
-            end = max(end, point.index_offset + size)
-            members.append(i)
-            continue
-        close()
-        group, start, end = (
-            point.index_group,
-            point.index_offset,
-            point.index_offset + size,
-        )
-        members = [i]
-    close()
+    item_of: dict[str, int] = {}
+    lengths: list[int] = []
+    where: list[tuple[int, int]] = []
+    for point in points:
+        name = point.source_name
+        n = item_of.get(name)
+        if n is None:
+            n = item_of[name] = len(lengths)
+            lengths.append(0)
+        end = point.source_offset + max(point.byte_size, 1)
+        lengths[n] = max(lengths[n], end)
+        where.append((n, point.source_offset))
+    items = [
+        SumReadItem(IndexGroup.SYM_VALUE_BY_HANDLE, handles[name], lengths[n])
+        for name, n in item_of.items()
+    ]
     return items, where
 
 
@@ -225,9 +214,13 @@ class PollLayout:
 
     @classmethod
     def build(
-        cls, points: Sequence[Point], chunk_size: int = MAX_SUM_SUB_COMMANDS
+        cls,
+        points: Sequence[Point],
+        handles: Mapping[str, int],
+        chunk_size: int = MAX_SUM_SUB_COMMANDS,
     ) -> PollLayout:
-        items, where = plan_items(points)
+        """The layout of `points`, each read by its source's handle."""
+        items, where = plan_items(points, handles)
         chunks: list[ChunkDecoder] = []
         for first in range(0, len(items), chunk_size):
             chunk_items = items[first : first + chunk_size]

@@ -24,7 +24,14 @@ anywhere else.
 - **CA out-record alarms.** softioc can stage an out record's alarm only for
   its next processing, and processing an out record of FastCS writes to the
   device: `_set_out_record_alarm` does what processing would through EPICS's
-  own database calls.
+  own database calls, or, while a put is still processing the record, stages
+  the alarm for the put's completion (which would otherwise overwrite it).
+- **Setpoints after a put.** FastCS's CA put handler stages MAJOR on a failed
+  put and NO_ALARM on a good one, just before the put completes for the
+  client; `watch_ca_puts` runs the IOC's own verdict after it, before the
+  completion, so `caput -c` sees the IOC's alarm every time. `sync_setpoint`
+  shows a value on every setpoint PV (FastCS's sync-setpoint callbacks), so a
+  put on CA shows on PVA and the other way round.
 - **A poll cycle's records in one turn.** softioc's `set()` queues an in
   record's processing with `scanIoRequest` through ctypes, which releases the
   GIL: the EPICS callback thread wakes, takes the GIL for softioc's Python
@@ -50,6 +57,7 @@ IOC stops with one line naming the package and version.
 from __future__ import annotations
 
 import ctypes
+import enum
 import functools
 import importlib
 import importlib.abc
@@ -130,8 +138,30 @@ PVA_READ: Final = _Closure(
 PVA_WRITE: Final = _Closure(
     _PVA_MODULE, "make_shared_write_pv", "set_setpoint", "shared_pv"
 )
+CA_WRITE: Final = _Closure(
+    _CA_MODULE, "_create_and_link_write_pv", "set_setpoint_without_process", "record"
+)
+"""The CA transport's sync-setpoint callback (shape check only)."""
 RBV_SUFFIX: Final = "_RBV"
 _NO_ALARM: Final = {"severity": 0, "status": 0, "message": ""}
+_ON_UPDATE: Final = "_ProcessDeviceSupportOut__on_update"
+"""Where a softioc out record keeps its on-update callback."""
+_WATCHED: Final = "_fastcs_ethercat_watched"
+"""Set on an out record whose puts `watch_ca_puts` follows."""
+
+
+class Parts(enum.IntFlag):
+    """Which PVs of an attribute an alarm goes to."""
+
+    CA_IN = enum.auto()
+    PVA_READ = enum.auto()
+    CA_OUT = enum.auto()
+    PVA_WRITE = enum.auto()
+    READBACK = CA_IN | PVA_READ
+    """What the PLC holds: the in record (`_RBV` of an output) and its PVA PV."""
+    SETPOINT = CA_OUT | PVA_WRITE
+    """What was asked for: an output's out record and PVA setpoint PV."""
+    ALL = READBACK | SETPOINT
 
 
 def ca_name(attribute: Attribute[Any, Any]) -> str:
@@ -204,17 +234,24 @@ class Endpoints:
             for x in (self.ca_in, self.ca_out, self.pva_read, self.pva_write)
         )
 
-    def publish_alarm(self, severity: int, status: int, message: str) -> int:
-        """Give every PV this alarm, value unchanged; how many were reached."""
+    def publish_alarm(
+        self, severity: int, status: int, message: str, parts: Parts = Parts.ALL
+    ) -> int:
+        """Give the PVs of `parts` this alarm, value unchanged; how many were
+        reached."""
         reached = 0
-        if self.ca_in is not None:  # the time too: the record is on device time
+        if self.ca_in is not None and Parts.CA_IN in parts:
+            # the time too: the record is on device time
             self.ca_in.set_alarm(severity, status, timestamp=time.time())
             reached += 1
-        if self.ca_out is not None:
+        if self.ca_out is not None and Parts.CA_OUT in parts:
             _set_out_record_alarm(self.ca_out, severity, status)
             reached += 1
-        for pv in (self.pva_read, self.pva_write):
-            if pv is not None:
+        for pv, part in (
+            (self.pva_read, Parts.PVA_READ),
+            (self.pva_write, Parts.PVA_WRITE),
+        ):
+            if pv is not None and part in parts:
                 _post_pva_alarm(pv, severity, pva_status(status), message)
                 reached += 1
         return reached
@@ -417,7 +454,9 @@ def _set_out_record_alarm(record: Any, severity: int, status: int) -> None:
     Stage the alarm as softioc does (kept for the record's next processing),
     then, under the record's lock, do what processing would: stage it in
     NSEV/NSTA, let EPICS move it to SEVR/STAT (recGblResetAlarms, which posts
-    those fields) and post VAL with DBE_ALARM, so monitors see it.
+    those fields) and post VAL with DBE_ALARM, so monitors see it. While a
+    put is processing the record (PACT), only stage it: the put's completion
+    moves it to SEVR/STAT (resetting now would let the completion clear it).
     """
     record.set(record.get(), process=False, severity=severity, alarm=status)
     fields = getattr(record, "_record", None)
@@ -430,6 +469,8 @@ def _set_out_record_alarm(record: Any, severity: int, status: int) -> None:
     try:
         fields.NSEV = severity
         fields.NSTA = status
+        if fields.PACT:
+            return
         fields.TIME = time.time()
         changed = functions.reset_alarms(fields)
         if changed:
@@ -461,6 +502,48 @@ def _database_functions() -> _DatabaseFunctions:
     return _DatabaseFunctions(
         dbCore.dbScanLock, dbCore.dbScanUnlock, recGblResetAlarms, post_events
     )
+
+
+def watch_ca_puts(
+    attribute: Attribute[Any, Any], after: Callable[[Attribute[Any, Any]], None]
+) -> bool:
+    """Call `after(attribute)` when FastCS has handled a CA put to the
+    attribute's out record (and staged its own alarm), before the put
+    completes for the client. Once per record; False without one."""
+    record = endpoints_of(attribute).ca_out
+    if record is None:
+        return False
+    if getattr(record, _WATCHED, False):
+        return True
+    handler = getattr(record, _ON_UPDATE)
+
+    async def on_update(value: Any) -> None:
+        try:
+            await handler(value)
+        finally:
+            after(attribute)
+
+    setattr(record, _ON_UPDATE, on_update)
+    setattr(record, _WATCHED, True)
+    return True
+
+
+def take_over_setpoints(attribute: Attribute[Any, Any]) -> None:
+    """The IOC shows this output's setpoints itself from now on
+    (`ioc.setpoints`): FastCS's own sync at the first value is skipped."""
+    from fastcs.attributes import AttrRW
+
+    if isinstance(attribute, AttrRW):
+        attribute._setpoint_initialised = True  # pyright: ignore[reportAttributeAccessIssue]
+
+
+async def sync_setpoint(attribute: Attribute[Any, Any], value: Any) -> None:
+    """Show `value` on every setpoint PV of `attribute` (CA out record
+    without processing, PVA setpoint PV), as FastCS does at start."""
+    from fastcs.attributes import AttrW
+
+    if isinstance(attribute, AttrW):
+        await attribute._call_sync_setpoint_callbacks(value)  # pyright: ignore[reportPrivateUsage]
 
 
 def set_callback_queue_size(entries: int) -> None:
@@ -622,7 +705,7 @@ def version_problems() -> list[str]:
 def shape_problems() -> list[str]:
     """Internals used above that the installed packages no longer have."""
     problems: list[str] = []
-    for closure in (CA_READ, PVA_READ, PVA_WRITE):
+    for closure in (CA_READ, CA_WRITE, PVA_READ, PVA_WRITE):
         outer = getattr(importlib.import_module(closure.module), closure.outer, None)
         if not isinstance(outer, types.FunctionType):
             problems.append(f"fastcs: {closure.module}.{closure.outer} is gone")
@@ -656,7 +739,7 @@ def shape_problems() -> list[str]:
 
 def _softioc_problems() -> list[str]:
     from softioc import device_core, imports
-    from softioc.device import ProcessDeviceSupportIn
+    from softioc.device import ProcessDeviceSupportIn, ProcessDeviceSupportOut
 
     problems: list[str] = []
     if not callable(getattr(device_core, "LookupRecord", None)):
@@ -668,6 +751,8 @@ def _softioc_problems() -> list[str]:
         problems.append("softioc: in records no longer process _value")
     if not hasattr(ProcessDeviceSupportIn, "_value_to_epics"):
         problems.append("softioc: in records have no _value_to_epics")
+    if _ON_UPDATE not in ProcessDeviceSupportOut._process.__code__.co_names:
+        problems.append("softioc: out records no longer call __on_update")
     for name in ("recGblResetAlarms", "callbackSetQueueSize"):
         if not hasattr(imports, name):
             problems.append(f"softioc: imports.{name} is gone")

@@ -1,11 +1,12 @@
 """Which attributes are in alarm, and why: the one place the IOC raises alarms.
 
 An attribute can be invalid for several reasons at once (the target is gone,
-its terminal left OP, its sum-read item failed); it is back to NO_ALARM only
-when every reason is gone. EPICS alarms set through `ioc.alarms` are not
-sticky: the next value FastCS publishes carries NO_ALARM. So while an
+its terminal left OP, its sum-read item failed); it is back to the alarm of
+its own value (`alarms.value_alarm`: NO_ALARM, or a set Error bit's MAJOR)
+only when every reason is gone. EPICS alarms set through `ioc.alarms` are
+not sticky: the next value published carries its own alarm. So while an
 attribute is in alarm its new values are held back (the last one is kept)
-and published when the last reason goes, followed by `clear_alarm`.
+and published when the last reason goes, followed by its value's alarm.
 
 Reasons that a fresh value disproves (`FRESH`: the read failed, the target
 was unreachable) go by themselves when the poller hands on a new value;
@@ -14,20 +15,27 @@ the others (a terminal's state, a chain change) only by `mark_ok`.
 An attribute may have followers (`follow`): attributes that show a value
 made from each of its values (a scaled value's raw count and engineering
 value come from one read) and share its every alarm.
+
+An output's setpoint PVs can also have a problem of their own, which its
+readback does not share: a write that did not reach the PLC, one whose
+outcome is unknown, a setpoint waiting for what the PLC holds
+(`ioc.setpoints` decides which). It is shown on the setpoint PVs over any
+other reason until `setpoint_fine`; the readback PVs keep showing the PLC.
 """
 
 from __future__ import annotations
 
 import asyncio
 import logging
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Awaitable, Callable, Iterable, Iterator
 from dataclasses import dataclass
 from typing import Any, Final
 
 from fastcs.attributes import Attribute, AttrR
 
 from fastcs_ethercat.ioc import alarms
-from fastcs_ethercat.ioc.alarms import Severity, Status
+from fastcs_ethercat.ioc.alarms import NO_ALARM, AlarmState, Severity, Status
+from fastcs_ethercat.ioc.fastcs_adapter import Parts
 from fastcs_ethercat.ioc.publish import Publisher
 
 logger = logging.getLogger(__name__)
@@ -51,6 +59,13 @@ class Reason:
     status: Status
     message: str
 
+    def alarm(self) -> AlarmState:
+        return AlarmState(Severity.INVALID, self.status, self.message)
+
+
+ValueWatch = Callable[[AttrR[Any, Any], Any], Awaitable[None]]
+"""Called with an attribute and the value just published for it."""
+
 
 class Health:
     """Alarm reasons per attribute, and the values held back meanwhile."""
@@ -61,6 +76,9 @@ class Health:
         self._attributes: dict[int, Attribute[Any, Any]] = {}
         self._held: dict[int, tuple[Any, float | None]] = {}
         self._followers: dict[int, list[tuple[AttrR[Any, Any], Convert]]] = {}
+        self._setpoint: dict[int, Reason] = {}
+        """Problems of setpoint PVs alone (ioc.setpoints)."""
+        self._watches: dict[int, ValueWatch] = {}
         self.published = 0
         """Alarm changes published (for tests and statistics)."""
         self.failures = 0
@@ -128,19 +146,59 @@ class Health:
             await self._drop(attribute, FRESH)
         else:
             await self.publisher.publish(attribute, value, stamp)
+            if self._watches:
+                await self._watched(attribute, value)
         followers = self._followers.get(key)
         if followers is not None:
             for follower, convert in followers:
                 await self.post(follower, convert(value), stamp)
 
-    def write_failed(self, attribute: Attribute[Any, Any], message: str) -> None:
-        """A write the target refused: alarm once FastCS has failed the put
-        (it raises the record to MAJOR itself, which would hide INVALID);
-        the next value clears it."""
-        reason = Reason(Status.WRITE, message)
-        for written in self._with_followers([attribute]):
-            if not self.is_invalid(written):
-                asyncio.get_running_loop().call_soon(self._publish, written, reason)
+    def watch_value(self, attribute: AttrR[Any, Any], watch: ValueWatch) -> None:
+        """Call `watch` once, with the next value published for `attribute`
+        (a fresh one, or the one held while it was in alarm)."""
+        self._watches[id(attribute)] = watch
+
+    def unwatch_value(self, attribute: AttrR[Any, Any]) -> None:
+        self._watches.pop(id(attribute), None)
+
+    async def _watched(self, attribute: AttrR[Any, Any], value: Any) -> None:
+        watch = self._watches.pop(id(attribute), None)
+        if watch is not None:
+            await watch(attribute, value)
+
+    # -- setpoints -----------------------------------------------------------------
+
+    def setpoint_problem(
+        self, attribute: Attribute[Any, Any], status: Status, message: str
+    ) -> None:
+        """The setpoint PVs alone go INVALID with `status` (over any other
+        reason) until `setpoint_fine`."""
+        self._setpoint[id(attribute)] = Reason(status, message)
+        self._show_setpoint_soon(attribute)
+
+    def setpoint_fine(self, attribute: Attribute[Any, Any]) -> None:
+        """The setpoint's own problem is gone: its PVs show the attribute's
+        other reasons, if any."""
+        if self._setpoint.pop(id(attribute), None) is not None:
+            self._show_setpoint_soon(attribute)
+
+    def setpoint_alarm(self, attribute: Attribute[Any, Any]) -> AlarmState:
+        """What the setpoint PVs show now."""
+        own = self._setpoint.get(id(attribute))
+        if own is not None:
+            return own.alarm()
+        reasons = self._reasons.get(id(attribute))
+        return next(iter(reasons.values())).alarm() if reasons else NO_ALARM
+
+    def show_setpoint(self, attribute: Attribute[Any, Any]) -> None:
+        """Publish `setpoint_alarm` on the setpoint PVs (after a CA put, before
+        it completes for the client: see `fastcs_adapter.watch_ca_puts`)."""
+        self._publish_state(attribute, self.setpoint_alarm(attribute), Parts.SETPOINT)
+
+    def _show_setpoint_soon(self, attribute: Attribute[Any, Any]) -> None:
+        """Once the put under way has been answered: FastCS's PVA handler
+        posts its own alarm (MAJOR) after the put fails, and ours goes after."""
+        asyncio.get_running_loop().call_soon(self.show_setpoint, attribute)
 
     async def _drop(self, attribute: Attribute[Any, Any], gone: Iterable[str]) -> None:
         key = id(attribute)
@@ -157,30 +215,39 @@ class Health:
         del self._reasons[key]
         self._attributes.pop(key, None)
         held = self._held.pop(key, None)
+        published = False
         if held is not None and isinstance(attribute, AttrR):
             try:
                 await self.publisher.publish(attribute, *held)
+                published = True
             except Exception as error:  # one line: a flood of these is unreadable
                 logger.warning(
                     "cannot post the held value of %s: %s", _name(attribute), error
                 )
         self._clear(attribute)
+        if published and isinstance(attribute, AttrR) and held is not None:
+            await self._watched(attribute, held[0])
+
+    def _parts(self, attribute: Attribute[Any, Any]) -> Parts:
+        """A setpoint with its own problem keeps showing it."""
+        return Parts.READBACK if id(attribute) in self._setpoint else Parts.ALL
 
     def _publish(self, attribute: Attribute[Any, Any], reason: Reason) -> None:
+        self._publish_state(attribute, reason.alarm(), self._parts(attribute))
+
+    def _clear(self, attribute: Attribute[Any, Any]) -> None:
+        state = alarms.value_alarm(attribute)  # a set Error bit stays MAJOR
+        self._publish_state(attribute, state, self._parts(attribute))
+
+    def _publish_state(
+        self, attribute: Attribute[Any, Any], state: AlarmState, parts: Parts
+    ) -> None:
         try:
-            alarms.set_alarm(attribute, Severity.INVALID, reason.status, reason.message)
+            alarms.publish_alarm(attribute, state, parts)
             self.published += 1
         except Exception as error:  # an alarm must never stop polling
             self.failures += 1
             logger.warning("cannot set the alarm of %s: %s", _name(attribute), error)
-
-    def _clear(self, attribute: Attribute[Any, Any]) -> None:
-        try:
-            alarms.clear_alarm(attribute)
-            self.published += 1
-        except Exception as error:
-            self.failures += 1
-            logger.warning("cannot clear the alarm of %s: %s", _name(attribute), error)
 
 
 def _name(attribute: Attribute[Any, Any]) -> str:

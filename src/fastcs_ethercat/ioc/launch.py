@@ -1,4 +1,4 @@
-"""Start a FastCS controller tree as an EPICS IOC: CA and/or PVA, PVI, screens.
+"""Start a FastCS controller tree as an EPICS IOC: CA and/or PVA, PVI.
 
 FastCS's own `launch()` builds its controllers from a YAML schema of their
 `__init__`; our tree comes from the live symbol table instead, so this module
@@ -8,13 +8,13 @@ builds the transports itself and runs `FastCS` directly:
   before iocInit, because every changed value of every record queues one
   callback and the EPICS default of 2000 overflows on a large rack),
 - PVA: `EpicsPVATransport` (p4p), which also serves the PVI structure
-  `<path>:PVI` of every controller,
-- screens: `EpicsGUIOptions` on one transport (both would write the same
-  files): `<prefix>.bob`, `index.bob` and one sub-screen per sub-controller.
+  `<path>:PVI` of every controller.
 
 softioc can initialise only once per process, so an IOC (and every test of
-one) lives in its own process. The ready line goes to stdout once both
-transports serve, so a parent process knows when to look for PVs.
+one) lives in its own process. `on_built` runs once the tree is built,
+before anything serves (the screens are written there: `ioc.screens`); the
+ready line goes to stdout once both transports serve, so a parent process
+knows when to look for PVs (and screens).
 """
 
 from __future__ import annotations
@@ -28,7 +28,6 @@ from typing import Final
 from fastcs.control_system import FastCS
 from fastcs.controllers import Controller, ControllerAPI
 from fastcs.transports import Transport
-from fastcs.transports.epics import EpicsGUIOptions
 
 from fastcs_ethercat.process import ready_line
 
@@ -43,9 +42,6 @@ class LaunchOptions:
 
     ca: bool = True
     pva: bool = True
-    screens_dir: Path | None = None
-    """Write Phoebus .bob screens here (PVA PVs if CA is off)."""
-    screens_title: str = "EtherCAT"
     ca_aliases: Mapping[str, str] = field(default_factory=dict)
     """Extra CA record names, full PV -> alias (CA only; PVA has no aliases)."""
     callback_queue_size: int = DEFAULT_CALLBACK_QUEUE_SIZE
@@ -62,20 +58,13 @@ class LaunchOptions:
 
 def build_transports(options: LaunchOptions) -> list[Transport]:
     """The FastCS transports for `options` (imports softioc only for CA)."""
-    gui = (
-        EpicsGUIOptions(output_dir=options.screens_dir, title=options.screens_title)
-        if options.screens_dir is not None
-        else None
-    )
     transports: list[Transport] = []
     if options.ca:
         from fastcs.transports.epics import EpicsCAOptions
         from fastcs.transports.epics.ca.transport import EpicsCATransport
 
         transports.append(
-            EpicsCATransport(
-                epicsca=EpicsCAOptions(aliases=dict(options.ca_aliases)), gui=gui
-            )
+            EpicsCATransport(epicsca=EpicsCAOptions(aliases=dict(options.ca_aliases)))
         )
         if options.access_security_file is not None or options.read_only:
             from fastcs_ethercat.ioc.access import AccessSecurity, access_group_of
@@ -90,7 +79,7 @@ def build_transports(options: LaunchOptions) -> list[Transport]:
     if options.pva:
         from fastcs.transports.epics.pva.transport import EpicsPVATransport
 
-        transports.append(EpicsPVATransport(gui=None if options.ca else gui))
+        transports.append(EpicsPVATransport())
     return transports
 
 
@@ -101,6 +90,7 @@ def build_fastcs(
     loop: asyncio.AbstractEventLoop,
     *,
     on_ready: Callable[[], object] | None = None,
+    on_built: Callable[[], object] | None = None,
 ) -> FastCS:
     """A `FastCS` serving `root` under `prefix`; prints the ready line when up.
 
@@ -116,7 +106,7 @@ def build_fastcs(
 
         fastcs_adapter.set_callback_queue_size(options.callback_queue_size)
         fastcs_adapter.install_field_memo()  # one record per CA PV: fields once
-    transports = [*build_transports(options), _Announce(prefix, on_ready)]
+    transports = [*build_transports(options), _Announce(prefix, on_ready, on_built)]
     return FastCS(root, transports, loop)
 
 
@@ -126,6 +116,7 @@ def run(
     options: LaunchOptions,
     *,
     on_ready: Callable[[], object] | None = None,
+    on_built: Callable[[], object] | None = None,
 ) -> None:
     """Serve until SIGINT or SIGTERM, as this process's one IOC.
 
@@ -136,29 +127,39 @@ def run(
     loop = asyncio.new_event_loop()
     asyncio.set_event_loop(loop)
     try:
-        build_fastcs(root, prefix, options, loop, on_ready=on_ready).run(
-            interactive=False
-        )
+        build_fastcs(
+            root, prefix, options, loop, on_ready=on_ready, on_built=on_built
+        ).run(interactive=False)
     finally:
         loop.close()
 
 
 class _Announce(Transport):
-    """Prints the ready line once the real transports serve.
+    """Runs `on_built` once the tree is built and prints the ready line once
+    the real transports serve.
 
-    FastCS gathers the transports' `serve()` in order: CA runs iocInit and PVA
-    starts its p4p server in their first step, so once this last one has
-    yielded a few times, both are up.
+    FastCS connects every transport after the root's `initialise()`, then
+    gathers their `serve()` in order: CA runs iocInit and PVA starts its p4p
+    server in their first step, so once this last one has yielded a few
+    times, both are up.
     """
 
-    def __init__(self, prefix: str, on_ready: Callable[[], object] | None) -> None:
+    def __init__(
+        self,
+        prefix: str,
+        on_ready: Callable[[], object] | None,
+        on_built: Callable[[], object] | None = None,
+    ) -> None:
         self.prefix = prefix
         self.on_ready = on_ready
+        self.on_built = on_built
 
     def connect(
         self, controller_apis: list[ControllerAPI], loop: asyncio.AbstractEventLoop
     ) -> None:
-        """Nothing to connect: this transport serves no PVs."""
+        """This transport serves no PVs: the tree is built, say so."""
+        if self.on_built is not None:
+            self.on_built()
 
     async def serve(self) -> None:
         for _ in range(3):

@@ -30,10 +30,17 @@ class PointKind(Enum):
 class Point:
     """One value the IOC serves: a TwinCAT symbol or one member of it.
 
-    `index_group`/`index_offset`/`byte_size` are what a sum read asks for (the
-    live table's address of the symbol, moved to the member's byte); for BIT
-    points in the bit-addressed image groups the size is 1 byte and
-    `bit_offset` says which bit.
+    The IOC reads and writes by symbol handle, never by address: an online
+    change then makes a request fail (0x711) instead of touching other
+    bytes. `source` is the live symbol whose value holds the point's bytes
+    (a handle per source is read each cycle), at `source_offset` within it;
+    `symbol` itself is what a write's handle names (a member reaches its own
+    bytes, a bit member its own bit). A bit symbol of the bit-addressed image
+    reads by handle as one byte, its value in bit 0.
+
+    `index_group`/`index_offset` are where the live table put the point at
+    discovery (the symbol's address moved to the member's byte): a record of
+    that moment, never used to read or write.
     """
 
     key: str  # stable id, unique within the IOC: "<master>/<slave>/<symbol>"
@@ -52,6 +59,26 @@ class Point:
     enum_texts: tuple[tuple[int, str], ...] = ()
     scaling: Scaling | None = None  # engineering units (terminals.meaning)
     severity: int = 0  # EPICS alarm severity while a status bit/field is set
+    channel: int | None = None
+    """The terminal channel it belongs to (its PV sits under `CH<n>`)."""
+    entry_name: str = ""
+    """The ESI entry it reads within its symbol (`Status.Underrange`, `Value`):
+    its PV name; "" names it by its symbol."""
+    source: str = ""  # the live symbol holding the bytes; "" = `symbol` itself
+    source_offset: int = 0  # byte of the point's bytes within the source's value
+    source_type: str = ""  # the source's type and size in the live table at
+    source_size: int = 0  # discovery ("" / 0: the point's own)
+
+    @property
+    def source_name(self) -> str:
+        """The symbol a read handle is taken for."""
+        return self.source or self.symbol
+
+    @property
+    def source_shape(self) -> tuple[str, int]:
+        """(type, size) the source had at discovery: a handle whose symbol
+        now has another is not used (it would misread the bytes)."""
+        return (self.source_type or self.type_name, self.source_size or self.byte_size)
 
 
 @dataclass(frozen=True, slots=True)
@@ -68,6 +95,10 @@ class CoePoint:
     default: str = ""
     enum_texts: tuple[tuple[int, str], ...] = ()
     units: str = ""  # EGU, from the ESI's unit code
+    name: str = ""
+    """The sub-item's ESI name (the object's when it has none): its PV name."""
+    object_name: str = ""
+    """The object's ESI name (`AI Settings`): its screen group."""
 
 
 @dataclass(frozen=True, slots=True)

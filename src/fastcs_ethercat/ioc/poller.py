@@ -1,13 +1,15 @@
 """Poll one master's points with sum reads and hand on only what changed.
 
-Per cycle: one 0xF080 sum read per <= 500 items (`ioc.decode` merges points
-that share bytes into one item), each answer decoded with one numpy view and
-compared with the previous answer; `on_changes` gets only changed values (all
-on the first cycle and after a failure), `on_errors` the points whose item
-failed, without stopping the others. Writes are single ADS writes (sum-write
-is refused on the device port); a bit inside a byte-addressed word is written
-read-modify-write, a bit of the bit-addressed image (0xF021 / 0xF031) as one
-byte, following the live symbol's group.
+Per cycle: one 0xF080 sum read per <= 500 items, an item per source symbol
+read by its handle (`ioc.decode`, `ioc.handles`), each answer decoded with
+one numpy view and compared with the previous answer; `on_changes` gets only
+changed values (all on the first cycle and after a failure), `on_errors` the
+points whose item failed (an invalid handle after an online change among
+them), without stopping the others.
+
+Writes go by handle too: `pack_write` checks a value against the point's
+type and gives the bytes its handle takes (a bit or bit field: one byte
+holding the value, which the target puts into its bits alone).
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ import contextlib
 import logging
 import math
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Final
 
@@ -28,7 +30,6 @@ from fastcs_ethercat.ads.constants import MAX_SUM_SUB_COMMANDS, AdsReturnCode
 from fastcs_ethercat.ads.values import array_type_name, pack_value
 from fastcs_ethercat.ioc.decode import PollLayout
 from fastcs_ethercat.ioc.plan import Point, PointKind
-from fastcs_ethercat.ioc.resolve import BIT_GROUPS
 
 logger = logging.getLogger(__name__)
 
@@ -64,12 +65,14 @@ class PollStats:
 
 
 class Poller:
-    """Polls `points` through `client` (the master's device port)."""
+    """Polls `points` through `client` (the master's device port), each by
+    the handle of its source symbol (`handles`: source name -> handle)."""
 
     def __init__(
         self,
         client: AdsClient,
         points: Sequence[Point],
+        handles: Mapping[str, int],
         on_changes: OnChanges,
         on_errors: OnErrors | None = None,
         *,
@@ -79,7 +82,7 @@ class Poller:
         self.on_changes = on_changes
         self.on_errors = on_errors
         self.chunk_size = chunk_size
-        self.layout = PollLayout.build(points, chunk_size)
+        self.layout = PollLayout.build(points, handles, chunk_size)
         self.stats = PollStats(
             requests_per_cycle=len(self.layout.chunks),
             items_per_cycle=self.layout.item_count,
@@ -186,12 +189,6 @@ class Poller:
     def stop(self) -> None:
         self._stop.set()
 
-    # -- writes ------------------------------------------------------------------
-
-    async def write_point(self, point: Point, value: Any) -> None:
-        """Write one point's value with single ADS writes (AdsError on failure)."""
-        await write_point(self.client, point, value)
-
 
 INTEGER_RANGES: Final = {
     "SINT": (-(2**7), 2**7 - 1),
@@ -254,34 +251,17 @@ def _check_scalar(point: Point, type_name: str, value: Any) -> None:
             raise ValueError(f"{value!r} is out of range of REAL for {point.symbol}")
 
 
-async def write_point(client: AdsClient, point: Point, value: Any) -> None:
-    """Pack `value` as the point's type and write it where the live symbol is."""
+def pack_write(point: Point, value: Any) -> bytes:
+    """The bytes a write of `value` to `point`'s handle takes (ValueError if
+    its type cannot hold it): a bit or bit field one byte holding the value,
+    which the target puts into those bits alone; an oversampling array all
+    its elements."""
     check_write(point, value)
-    if point.index_group in BIT_GROUPS:
-        await client.write(
-            point.index_group, point.index_offset, pack_value("BOOL", value)
-        )
-        return
     if point.kind in (PointKind.BIT, PointKind.BITS):
         bits = max(point.bit_size, 1)
         number = int(bool(value)) if bits == 1 else int(value)
-        if not 0 <= number < 1 << bits:
-            raise ValueError(f"{value!r} does not fit {bits} bits of {point.symbol}")
-        current = await client.read(
-            point.index_group, point.index_offset, point.byte_size
-        )
-        word = int.from_bytes(current, "little")
-        mask = ((1 << bits) - 1) << point.bit_offset
-        word = (word & ~mask) | (number << point.bit_offset)
-        await client.write(
-            point.index_group,
-            point.index_offset,
-            word.to_bytes(point.byte_size, "little"),
-        )
-        return
+        return number.to_bytes((bits + 7) // 8, "little")
     type_name = point.type_name
     if point.kind is PointKind.ARRAY:
         type_name = array_type_name(0, point.length - 1, point.type_name)
-    await client.write(
-        point.index_group, point.index_offset, pack_value(type_name, value)
-    )
+    return pack_value(type_name, value)

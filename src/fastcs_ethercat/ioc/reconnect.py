@@ -95,6 +95,7 @@ class Reconnection:
         self.supervisor = Supervisor(self.probe, self, plan.symbol_version)
         connection.state_of = lambda: self.supervisor.state
         connection.wake = self.supervisor.poke
+        connection.resync = self.supervisor.request_resync
         self._tasks: list[asyncio.Task[Any]] = []
         self._coe_refresh: asyncio.Task[None] | None = None
 
@@ -105,7 +106,12 @@ class Reconnection:
         self._tasks.append(asyncio.create_task(self._start()))
 
     async def _start(self) -> None:
-        await self._start_polling()
+        try:
+            await self._start_polling()
+        except Exception as error:  # e.g. no answer to the handles: resync
+            reason = f"{type(error).__name__}: {error}"
+            logger.warning("polling did not start: %s", reason)
+            self.supervisor.request_resync(f"polling did not start ({reason})")
         self._tasks.append(asyncio.create_task(self.supervisor.run()))
         self.start_coe_refresh()
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from collections import defaultdict
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from fastcs_ethercat.ads.client import SymbolTables
 from fastcs_ethercat.ads.constants import IndexGroup
@@ -36,7 +36,7 @@ from fastcs_ethercat.terminals.meaning import (
     severity_of_name,
 )
 from fastcs_ethercat.terminals.model import CoeObject, TerminalType
-from fastcs_ethercat.terminals.names import snake_name
+from fastcs_ethercat.terminals.names import snake_name, take_unique
 from fastcs_ethercat.terminals.registry import TerminalRegistry
 from fastcs_ethercat.terminals.symbols import (
     ExpandedSymbol,
@@ -71,20 +71,6 @@ def group_symbols(symbols: Iterable[AdsSymbolEntry]) -> dict[str, list[AdsSymbol
         if dot:
             groups[prefix].append(entry)
     return dict(groups)
-
-
-@dataclass(slots=True)
-class _Names:
-    """Attribute names of one terminal, made unique in a stable order."""
-
-    used: set[str] = field(default_factory=set)
-
-    def take(self, wanted: str) -> str:
-        name, number = wanted, 2
-        while name in self.used:
-            name, number = f"{wanted}_{number}", number + 1
-        self.used.add(name)
-        return name
 
 
 @dataclass(frozen=True, slots=True)
@@ -170,6 +156,8 @@ def _point(
     description: str = "",
     scaling: Scaling | None = None,
     severity: int = 0,
+    channel: int | None = None,
+    entry_name: str = "",
 ) -> Point:
     symbol = f"{entry.name}.{member.path}" if member.path else entry.name
     return Point(
@@ -188,6 +176,12 @@ def _point(
         description=description,
         scaling=scaling,
         severity=severity,
+        channel=channel,
+        entry_name=entry_name,
+        source=entry.name,
+        source_offset=member.byte_offset,
+        source_type=entry.type_name,
+        source_size=entry.size,
     )
 
 
@@ -340,7 +334,7 @@ def resolve_terminal(
             f"{slave.name}: the PLC runs PDO group {plan.active_group!r}, the "
             f"YAML selects {wanted.name!r}; serving {plan.active_group!r}"
         )
-    names = _Names()
+    names: set[str] = set()
     for symbol in chosen_symbols(terminal, symbols, plan.active_group):
         entry = live.get(symbol.name)
         if entry is None:
@@ -353,10 +347,9 @@ def resolve_terminal(
         entry = live.get(rest)
         if entry is not None:
             for member in symbol_members(entry, types):
+                attribute = take_unique(attribute, names)
                 plan.points.append(
-                    _live_point(
-                        master, entry, member, names.take(attribute), match.type_name
-                    )
+                    _live_point(master, entry, member, attribute, match.type_name)
                 )
     plan.coe = views.coe(terminal)
     return plan
@@ -367,7 +360,7 @@ def _yaml_points(
     entry: AdsSymbolEntry,
     symbol: ExpandedSymbol,
     types: Types,
-    names: _Names,
+    names: set[str],
     type_name: str,
 ) -> list[Point]:
     members = symbol_members(entry, types) or _fallback_members(symbol)
@@ -394,7 +387,7 @@ def _yaml_points(
                 master,
                 entry,
                 member,
-                names.take(attribute),
+                take_unique(attribute, names),
                 writable=writable,
                 description=describe(
                     type_name,
@@ -407,6 +400,8 @@ def _yaml_points(
                     else None
                 ),
                 severity=SEVERITY_LEVELS[yaml_member.severity] if yaml_member else 0,
+                channel=symbol.channel,
+                entry_name=member.path or symbol.entry_name,
             )
         )
     return points
@@ -434,12 +429,12 @@ def _live_points(
     """Every member of `entries`, read-only, in name order; `name(rest of
     the symbol's name, member)` names each attribute (made unique); `kind`
     (the slave's type) starts their descriptions."""
-    names = _Names()
+    names: set[str] = set()
     points: list[Point] = []
     for entry in sorted(entries, key=lambda e: e.name):
         rest = entry.name.partition(".")[2]
         for member in symbol_members(entry, types):
-            attribute = names.take(name(rest, member))
+            attribute = take_unique(name(rest, member), names)
             points.append(_live_point(master, entry, member, attribute, kind))
     return points
 
@@ -467,11 +462,15 @@ def coe_object_points(obj: CoeObject) -> list[CoePoint]:
                 default=obj.default_value or obj.default_data or "",
                 enum_texts=tuple((e.value, e.text) for e in obj.enum),
                 units=coe_unit(obj.unit),
+                name=obj.name,
+                object_name=obj.name,
             )
         ]
     return [
         CoePoint(
             attribute=f"{obj.fastcs_name}_{sub.fastcs_name}",
+            name=sub.name,
+            object_name=obj.name,
             index=obj.index,
             subindex=sub.subindex,
             type_name=sub.type_name,

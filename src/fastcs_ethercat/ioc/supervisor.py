@@ -8,7 +8,9 @@ work:
   with growing pauses until it succeeds (the app closes and reopens its
   clients, discovers again and resumes polling);
 - the runtime not in RUN: `stopped` once; back in RUN: `resync`;
-- another symbol version (online change): `resync`.
+- another symbol version (online change), or a master whose symbol handles
+  went invalid (`request_resync`: the only sign of an online change where
+  the device port does not answer 0xF008): `resync`.
 
 A beamline IOC runs for months: nothing here ends except by cancellation.
 """
@@ -34,6 +36,9 @@ PROBE_TIMEOUT_S: Final = 0.5
 to mark every PV INVALID: inside the 1 s issue 5 asks for, while a probe may
 still take half a second on a loaded host before it counts as lost."""
 RECONNECT_TIMEOUT_S: Final = 30.0
+REQUESTED_RESYNC_EVERY_S: Final = 1.0
+"""Resyncs asked for by the masters come at most this often (a target whose
+handles keep failing must not make the IOC resolve in a loop)."""
 
 
 class LinkState(StrEnum):
@@ -125,6 +130,8 @@ class Supervisor:
         self.backoff = backoff or Backoff()
         self.stats = SupervisorStats()
         self._wake = asyncio.Event()
+        self._resync_wanted = ""
+        self._last_requested = -REQUESTED_RESYNC_EVERY_S
 
     @property
     def state(self) -> LinkState:
@@ -132,6 +139,13 @@ class Supervisor:
 
     def poke(self) -> None:
         """Probe now (a poll cycle failed as a whole)."""
+        self._wake.set()
+
+    def request_resync(self, why: str) -> None:
+        """Resolve every symbol again at the next probe (within
+        REQUESTED_RESYNC_EVERY_S of the last such request)."""
+        if not self._resync_wanted:
+            self._resync_wanted = why
         self._wake.set()
 
     async def run(self) -> None:
@@ -177,8 +191,14 @@ class Supervisor:
             await self._resync(
                 f"symbol version {self.symbol_version} -> {answer.symbol_version}"
             )
+        elif self._resync_wanted:
+            now = time.monotonic()
+            if now - self._last_requested >= REQUESTED_RESYNC_EVERY_S:
+                self._last_requested = now
+                await self._resync(self._resync_wanted)
 
     async def _resync(self, why: str) -> None:
+        self._resync_wanted = ""
         logger.warning("target: %s: resolving every symbol again", why)
         self.stats.state = LinkState.RESYNCING
         try:
@@ -219,6 +239,7 @@ class Supervisor:
                 logger.info("target: %s", self.stats.last_error)
                 continue
             self.stats.reconnects += 1
+            self._resync_wanted = ""  # the reconnect resolved every symbol
             self._connected()
             return
 

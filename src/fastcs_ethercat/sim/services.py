@@ -17,6 +17,7 @@ table or string gets the bytes there are (facts section 9).
 from __future__ import annotations
 
 import struct
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Final, TypeVar
 
@@ -54,6 +55,7 @@ from fastcs_ethercat.sim.device import SimDevice
 from fastcs_ethercat.sim.itemfaults import item_error
 from fastcs_ethercat.sim.layout import AREAS, INPUTS, OUTPUTS, ImageArea
 from fastcs_ethercat.sim.master import SlaveRuntime
+from fastcs_ethercat.sim.symtab import Resolved
 
 VERSION: Final = (3, 1, 2103)
 """Version and build the I/O server reports (catio's dumps of real racks)."""
@@ -249,6 +251,7 @@ class DevicePort(Port):
             case IndexGroup.SYM_RELEASE_HANDLE:
                 if len(data) != 4:
                     return AdsReturnCode.DEVICE_INVALID_SIZE
+                self.plans.plans.clear()  # plans may read by that handle
                 return dev.release_handle(_U32.unpack(data)[0])
             case IndexGroup.IO_IMAGE_CLEAR_INPUTS | IndexGroup.IO_IMAGE_CLEAR_OUTPUTS:
                 area = (
@@ -349,7 +352,9 @@ class DevicePort(Port):
             ]
         else:
             if not self.plans.knows(data):
-                self.plans.learn(data, request.items, image.inputs, image.outputs)
+                self.plans.learn(
+                    data, request.items, image.inputs, image.outputs, self._by_handle
+                )
             # The hot path: plain slices of the images, single bits by lookup.
             areas = {area.byte_group: image.buffer(area) for area in AREAS}
             bits = {area.bit_group: image.buffer(area) for area in AREAS}
@@ -364,6 +369,9 @@ class DevicePort(Port):
         return AdsReturnCode.NO_ERROR, SumReadResponse.for_items(
             request.items, outcomes
         ).encode()
+
+    def _by_handle(self, handle: int) -> Resolved | None:
+        return self.dev.handle(handle)[1]
 
     def _sub_read(self, group: int, offset: int, length: int) -> Outcome:
         if group in _SUM_GROUPS:
@@ -491,10 +499,15 @@ class SumReadPlan:
 
 
 def compile_sum_read(
-    items: tuple[SumReadItem, ...], inputs: bytearray, outputs: bytearray
+    items: tuple[SumReadItem, ...],
+    inputs: bytearray,
+    outputs: bytearray,
+    by_handle: Callable[[int], Resolved | None] = lambda handle: None,
 ) -> SumReadPlan | None:
     """The plan for `items`, or None when any item needs the general path
-    (another group, out of range, a multi-bit read)."""
+    (another group, out of range, a multi-bit read, a handle that is not
+    valid now). A read by handle is planned as the image slice or bit it
+    names (`by_handle`), so a plan is only valid while its handles are."""
     layout = SumReadLayout.of(items)
     gathers: dict[int, tuple[bytearray, list[list[int]]]] = {}
     for area, buffer in ((INPUTS, inputs), (OUTPUTS, outputs)):
@@ -503,6 +516,11 @@ def compile_sum_read(
         gathers[area.bit_group] = (buffer, lists)
     byte_groups = {INPUTS.byte_group, OUTPUTS.byte_group}
     for item, position in zip(items, layout.data_offsets.tolist(), strict=True):
+        if item.index_group == IndexGroup.SYM_VALUE_BY_HANDLE:
+            planned = _handle_item(item, by_handle(item.index_offset))
+            if planned is None:
+                return None
+            item = planned
         found = gathers.get(item.index_group)
         if found is None:
             return None
@@ -535,6 +553,23 @@ def compile_sum_read(
         read_length=layout.size,
         inputs=gather(INPUTS.byte_group),
         outputs=gather(OUTPUTS.byte_group),
+    )
+
+
+def _handle_item(item: SumReadItem, found: Resolved | None) -> SumReadItem | None:
+    """The image read a read by handle amounts to: a single bit, or the
+    first bytes of a byte-aligned value (a longer read gets zeros after
+    them, as the general path answers); None for anything else."""
+    if found is None:
+        return None
+    if found.type.is_bit:
+        if found.type.bit_size != 1 or item.length < 1:
+            return None
+        return SumReadItem(found.area.bit_group, found.bit_address, 1)
+    if found.bit_address % 8:
+        return None
+    return SumReadItem(
+        found.area.byte_group, found.bit_address // 8, min(item.length, found.size)
     )
 
 
@@ -574,10 +609,11 @@ class SumReadPlans:
         items: tuple[SumReadItem, ...],
         inputs: bytearray,
         outputs: bytearray,
+        by_handle: Callable[[int], Resolved | None],
     ) -> None:
         if len(self.plans) >= _MAX_PLANS:
             self.plans.clear()
-        self.plans[bytes(data)] = compile_sum_read(items, inputs, outputs)
+        self.plans[bytes(data)] = compile_sum_read(items, inputs, outputs, by_handle)
 
 
 def _slice(buffer: bytearray, offset: int, length: int) -> Outcome:

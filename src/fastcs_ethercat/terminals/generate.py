@@ -35,7 +35,7 @@ from fastcs_ethercat.terminals.model import (
     TerminalType,
     coe_address,
 )
-from fastcs_ethercat.terminals.names import CHANNEL, snake_name, templatize, unique_name
+from fastcs_ethercat.terminals.names import CHANNEL, snake_name, take_unique, templatize
 
 COMMUNICATION_OBJECTS = range(0x1400, 0x1D00)
 """PDO parameters, mappings, assignments and SM settings: TwinCAT's business."""
@@ -168,9 +168,9 @@ def _symbol_nodes(clusters: list[_Cluster], oversampled: set[int]) -> list[Symbo
     taken: set[str] = set()
     for cluster in clusters:
         node = _symbol_node(cluster, oversampled)
-        fastcs = unique_name(node.fastcs_name, taken, f"{node.pdo_indices[0]:04x}")
-        taken.add(fastcs)
-        node.fastcs_name = fastcs
+        node.fastcs_name = take_unique(
+            node.fastcs_name, taken, f"{node.pdo_indices[0]:04x}"
+        )
         nodes.append(node)
     return nodes
 
@@ -229,8 +229,7 @@ def _members(pdos: Sequence[EsiPdo], names: list[str]) -> list[SymbolMember]:
         offset += entry.bit_len
         if entry.is_padding:
             continue
-        fastcs = unique_name(snake_name(names[position]), taken, str(position))
-        taken.add(fastcs)
+        fastcs = take_unique(snake_name(names[position]), taken, str(position))
         members.append(
             SymbolMember(
                 name=names[position],
@@ -321,8 +320,7 @@ def _sub_items(items: Sequence[EsiCoeSubItem]) -> list[CoeSubItem]:
     result: list[CoeSubItem] = []
     taken: set[str] = set()
     for sub in kept:
-        fastcs = unique_name(snake_name(sub.name), taken, f"{sub.subindex:02x}")
-        taken.add(fastcs)
+        fastcs = take_unique(snake_name(sub.name), taken, f"{sub.subindex:02x}")
         result.append(
             CoeSubItem(
                 subindex=sub.subindex,

@@ -24,7 +24,7 @@ from fastcs_ethercat.terminals.model import (
     SymbolNode,
     TerminalType,
 )
-from fastcs_ethercat.terminals.names import expand, unique_name
+from fastcs_ethercat.terminals.names import expand, take_unique
 
 
 @dataclass
@@ -362,13 +362,13 @@ def _merge_coe(old: TerminalType, merged: TerminalType, report: ChangeReport) ->
         obj.selected = before.selected
         if before.fastcs_name not in taken:
             obj.fastcs_name = before.fastcs_name
+            taken.add(obj.fastcs_name)
         else:
-            obj.fastcs_name = unique_name(obj.fastcs_name, taken, "new")
+            obj.fastcs_name = take_unique(obj.fastcs_name, taken, "new")
             report.choices.append(
                 f"{label} fastcs_name {before.fastcs_name!r} clashes; "
                 f"now {obj.fastcs_name!r}"
             )
-        taken.add(obj.fastcs_name)
         old_subs = {s.subindex: s.fastcs_name for s in before.sub_items}
         old_flags = {s.subindex: s.selected for s in before.sub_items}
         sub_names = {s.fastcs_name for s in obj.sub_items}

@@ -55,13 +55,16 @@ def snake_name(text: str, *, split_camel: bool = False) -> str:
     return snaked.replace(_MARK, CHANNEL)
 
 
-def unique_name(name: str, taken: set[str], suffix: str) -> str:
-    """`name`, or `name_<suffix>` (then `_2`, `_3`...) if it is already taken."""
-    if name not in taken:
-        return name
-    candidate = f"{name}_{suffix}"
+def take_unique(name: str, taken: set[str], suffix: str = "") -> str:
+    """The first free of `name`, `name_<suffix>` (if given), then `_2`, `_3`...
+    appended; it is added to `taken`. The one rule for names that must differ
+    from their siblings (symbol, member, CoE and attribute names)."""
+    candidate = name
+    if candidate in taken and suffix:
+        name = candidate = f"{name}_{suffix}"
     number = 2
     while candidate in taken:
-        candidate = f"{name}_{suffix}_{number}"
+        candidate = f"{name}_{number}"
         number += 1
+    taken.add(candidate)
     return candidate

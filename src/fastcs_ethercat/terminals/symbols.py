@@ -68,6 +68,12 @@ class ExpandedSymbol:
     node_index: int
 
     @property
+    def entry_name(self) -> str:
+        """The ESI entry a point of the whole symbol reads: its one member
+        (`Value` of `AI Compact Channel 1`); "" when it has several."""
+        return ".".join(self.members[0].path) if len(self.members) == 1 else ""
+
+    @property
     def bit_size(self) -> int:
         """Whole size in the process image."""
         return self.sample_bit_size * self.samples

@@ -4,13 +4,16 @@ The master owns everything between its ADS device and its attributes:
 
 - a typed map of its terminal controllers (by slave address) and of every
   attribute a polled point feeds (by point key);
+- the symbol handles its points are read and written by (`ioc.handles`),
+  taken whenever polling starts and given back when it stops; a handle that
+  went invalid (an online change) asks the supervisor to resolve again;
 - one `Poller` per poll rate, whose changes it posts straight to the
   attributes through `Health` (value path: poller -> decode -> master ->
   attribute -> publisher);
-- the write path of its outputs (`write`): checked, sent once to where the
-  live symbol is now, never queued;
+- the write path of its outputs (`write`): checked, sent once by handle,
+  never queued; what the setpoints then show is `Setpoints`' call;
 - `use_plan`, which re-resolves every point by key after a new discovery
-  (online change, reconnect): the seam where handle-based addressing goes.
+  (online change, reconnect).
 
 Its own queries (port 0xFFFF of the device's NetId) are slow-moving
 diagnostics, read once a second in one scan that also hands every slave its
@@ -27,18 +30,25 @@ from collections.abc import Awaitable, Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any, Final
 
-from fastcs.attributes import AttrR
+from fastcs.attributes import AttrR, AttrW
 from fastcs.controllers import Controller
 from fastcs.datatypes import Int, String
 from fastcs.methods import scan
 
-from fastcs_ethercat.ads.client import AdsError, unreachable
+from fastcs_ethercat.ads.client import (
+    AdsClient,
+    AdsError,
+    AdsHandleInvalidError,
+    AdsTimeoutError,
+    unreachable,
+)
 from fastcs_ethercat.ads.constants import (
     MASTER_STATE_OFFSET,
     AmsPort,
     EtherCatMasterGroup,
     describe_return_code,
 )
+from fastcs_ethercat.ads.errors import HANDLE_ERRORS
 from fastcs_ethercat.ads.ethercat import (
     CrcCounters,
     FrameCounters,
@@ -51,6 +61,7 @@ from fastcs_ethercat.ioc.alarms import Status
 from fastcs_ethercat.ioc.attributes import (
     PointIO,
     attribute_for_point,
+    engineering_value,
     from_device,
 )
 from fastcs_ethercat.ioc.connection import Connection
@@ -62,9 +73,12 @@ from fastcs_ethercat.ioc.controllers.terminal import (
     al_state_view,
 )
 from fastcs_ethercat.ioc.datatypes import AlarmBool, IntegralFloat, alarm_enum
+from fastcs_ethercat.ioc.handles import PointHandles, acquire, release
 from fastcs_ethercat.ioc.health import COMM, READ, Health
 from fastcs_ethercat.ioc.plan import MasterPlan, Point, TerminalPlan
-from fastcs_ethercat.ioc.poller import Poller, PollStats, write_point
+from fastcs_ethercat.ioc.poller import Poller, PollStats, pack_write
+from fastcs_ethercat.ioc.setpoints import Setpoints
+from fastcs_ethercat.ioc.supervisor import LinkState
 
 logger = logging.getLogger(__name__)
 
@@ -187,11 +201,21 @@ class MasterController(Controller):
         }
         self.attributes_by_key: dict[str, AttrR[Any, Any]] = {}
         """Every attribute a polled point feeds, terminals' included, by key."""
+        self.shown_by_key: dict[str, AttrR[Any, Any]] = {}
+        """Every attribute that shows a point to clients, by key: a scaled
+        point's engineering value (fed through its raw twin), which clients
+        write and whose setpoints show the writes."""
         self.groups: list[PollGroup] = []
         self.points: dict[str, Point] = {}
         """Point key -> the point as the target has it now (offsets move)."""
         self.symbol_port = plan.symbol_port
         """The device's ADS port as discovered last (sum reads and writes)."""
+        self.handles = PointHandles()
+        """The handles of the points polled now (taken when polling starts)."""
+        self.setpoints = Setpoints(health)
+        self._generation = 0
+        """Counts the handle sets taken and given back: a write that failed
+        on an older set asks for no resync (one is under way or done)."""
         self._group_of: dict[str, PollGroup] = {}
         self._tasks: list[asyncio.Task[Any]] = []
         self.unserved: list[tuple[str, str]] = []
@@ -232,12 +256,13 @@ class MasterController(Controller):
                 continue
             self.add_attribute(leaves[point.symbol], attr)
             assert isinstance(attr, AttrR)
-            self.attributes_by_key[point.key] = attr
+            self.attributes_by_key[point.key] = self.shown_by_key[point.key] = attr
 
     def add_terminal(self, terminal: TerminalController) -> None:
         """A terminal below this master (added to its parent by the builder)."""
         self.terminals[terminal.plan.slave.address] = terminal
         self.attributes_by_key.update(terminal.by_key)
+        self.shown_by_key.update(terminal.shown_by_key)
 
     # -- polling -------------------------------------------------------------------
 
@@ -287,7 +312,8 @@ class MasterController(Controller):
         return points
 
     async def start_polling(self) -> None:
-        """One poller task per rate, and one task posting its changes.
+        """Handles for every point, one poller task per rate, one task posting
+        its changes; the outputs' setpoints wait for the PLC's values.
 
         The poller hands on each cycle's changes synchronously, with the time
         of its read; they are queued and posted in order, so a slow cycle of
@@ -295,6 +321,16 @@ class MasterController(Controller):
         is published with that cycle's one timestamp.
         """
         client = await self.connection.client(self.connection.net_id, self.symbol_port)
+        served = [p for g in self.groups for p in g.points]
+        self.handles = await acquire(
+            client, served, writes=not self.connection.read_only
+        )
+        self._generation += 1
+        self._unreadable(served)
+        self.setpoints.follow(
+            a for k, a in self.shown_by_key.items()
+            if k in self.points and self.points[k].writable and isinstance(a, AttrW)
+        )  # fmt: skip
         for group in self.groups:
             batches: asyncio.Queue[Batch] = asyncio.Queue()
 
@@ -305,12 +341,37 @@ class MasterController(Controller):
             ) -> None:
                 queue.put_nowait((changes, stamp))
 
-            group.poller = Poller(client, group.points, on_changes, self.note_errors)
+            readable = [p for p in group.points if p.source_name in self.handles.reads]
+            group.poller = Poller(
+                client, readable, self.handles.reads, on_changes, self.note_errors
+            )
             self._tasks.append(asyncio.create_task(self._post_batches(batches)))
             self._tasks.append(asyncio.create_task(group.poller.run(group.rate_hz)))
 
+    def _unreadable(self, points: list[Point]) -> None:
+        """Points without a read handle go INVALID/READ (not polled); a source
+        the table no longer has as discovery saw it asks for a resync."""
+        by_problem: dict[str, list[AttrR[Any, Any]]] = defaultdict(list)
+        for point in points:
+            problem = self.handles.read_problem(point)
+            attr = self.attributes_by_key.get(point.key)
+            if problem is not None and attr is not None:
+                by_problem[f"{point.source_name}: {problem}"].append(attr)
+        for problem, attrs in by_problem.items():
+            self.health.mark_invalid(attrs, READ, Status.READ, problem)
+        if by_problem:
+            first = next(iter(by_problem))
+            logger.warning(
+                "%s: %d symbols not readable by handle (%s)",
+                self.plan.name,
+                len(by_problem),
+                first,
+            )
+            self.connection.resync(f"{len(by_problem)} symbols changed ({first})")
+
     async def stop_polling(self) -> None:
-        """Stop every poller and its posting task (before the clients go)."""
+        """Stop every poller and its posting task (before the clients go);
+        give the handles back while the target answers (unless read-only)."""
         for group in self.groups:
             if group.poller is not None:
                 group.poller.stop()
@@ -318,6 +379,20 @@ class MasterController(Controller):
         for task in tasks:
             task.cancel()
         await asyncio.gather(*tasks, return_exceptions=True)
+        old, self.handles = self.handles.all(), PointHandles()
+        self._generation += 1
+        if (
+            old
+            and not self.connection.read_only  # never an ADS write, not even this
+            and self.connection.state is not LinkState.DISCONNECTED
+        ):
+            try:
+                client = await self.connection.client(
+                    self.connection.net_id, self.symbol_port
+                )
+            except (AdsError, OSError):
+                return
+            await release(client, old)
 
     def poll_stats(self) -> list[PollStats]:
         return [g.poller.stats for g in self.groups if g.poller is not None]
@@ -337,7 +412,8 @@ class MasterController(Controller):
                     self.last_error = f"{point.symbol}: {type(error).__name__}: {error}"
 
     def note_errors(self, errors: list[tuple[Point, int]]) -> None:
-        """Points whose read failed this cycle: only they go into alarm."""
+        """Points whose read failed this cycle: only they go into alarm (their
+        values are not published); invalid handles ask for a resync."""
         by_code: dict[int, list[AttrR[Any, Any]]] = defaultdict(list)
         for point, code in errors:
             attr = self.attributes_by_key.get(point.key)
@@ -349,6 +425,11 @@ class MasterController(Controller):
             else:
                 reason, status = READ, Status.READ
             self.health.mark_invalid(attrs, reason, status, describe_return_code(code))
+        stale = HANDLE_ERRORS & by_code.keys()
+        if stale:
+            self.connection.resync(
+                f"symbol handles invalid ({describe_return_code(min(stale))})"
+            )
         if len(errors) >= len(self.points):
             self.connection.wake()  # the whole read failed: is the target there?
 
@@ -357,29 +438,75 @@ class MasterController(Controller):
     async def write(self, point: Point, value: Any) -> None:
         """One write from a client: checked, never queued, never repeated.
 
-        Rejected while the IOC is read-only or the target is not connected;
-        the live point (offsets as the target has them now) is checked and
-        written once. An ADS error puts the PV into WRITE alarm, is logged
-        and raised.
+        Sent once by the handle of the point's symbol; refused while the IOC
+        is read-only or the target is away, and when the point has no
+        handle. Whatever did not reach the PLC is logged and raised (the
+        client's put fails) and its setpoints say so (`Setpoints`).
         """
+        attr = self.shown_by_key.get(point.key)
+        shown = _fastcs_value(attr, engineering_value(point, value))
+        try:
+            await self._deliver(point, value)
+        except OutcomeUnknownError as error:
+            logger.error("write of %r to %s: %s", value, point.symbol, error)
+            if attr is not None:
+                await self.setpoints.unknown(attr, shown, str(error))
+            raise
+        except Exception as error:
+            why = _why(error)
+            logger.error("write of %r to %s failed: %s", value, point.symbol, why)
+            if attr is not None:
+                await self.setpoints.failed(attr, shown, f"not written: {why}")
+            if isinstance(error, AdsError):  # its text names a handle: name the symbol
+                raise WriteError(f"{point.symbol} not written: {why}") from error
+            raise
+        if attr is not None:
+            await self.setpoints.written(attr, shown)
+
+    async def _deliver(self, point: Point, value: Any) -> None:
         self.connection.check_writable(f"write to {point.symbol}")
         live = self.points.get(point.key)
         group = self._group_of.get(point.key)
         if live is None or group is None:
             raise LookupError(f"{point.symbol} is not on the target any more")
+        handle = self.handles.writes.get(point.symbol)
+        if handle is None:
+            problem = self.handles.write_problem(point)
+            raise LookupError(f"{point.symbol}: {problem}")
+        data = pack_write(live, value)
+        generation = self._generation
         client = await self.connection.client(self.connection.net_id, self.symbol_port)
         try:
-            await write_point(client, live, value)
-        except AdsError as error:
-            logger.error("write of %r to %s failed: %s", value, point.symbol, error)
-            attr = self.attributes_by_key.get(point.key)
-            if attr is not None:  # after FastCS's own alarm (MAJOR) for the put
-                asyncio.get_running_loop().call_soon(
-                    self.health.write_failed, attr, str(error)
-                )
+            await client.write_by_handle(handle, data)
+        except AdsHandleInvalidError:
+            if generation == self._generation:
+                self.connection.resync(f"write to {point.symbol}: handle invalid")
             raise
+        except AdsTimeoutError as error:
+            await self._confirm(client, handle, data, error)
+            logger.warning(
+                "write to %s timed out but was applied (read back)", point.symbol
+            )
         if group.poller is not None:
             group.poller.invalidate()  # the readback shows what the PLC holds
+
+    async def _confirm(
+        self, client: AdsClient, handle: int, data: bytes, error: AdsTimeoutError
+    ) -> None:
+        """A write that timed out may have landed: read the symbol back (the
+        target answers in order, so this read sees the write if it did)."""
+        try:
+            now = await client.read_by_handle(handle, len(data))
+        except AdsError as again:
+            raise OutcomeUnknownError(
+                f"outcome unknown: no answer ({describe_return_code(error.code)}), "
+                f"nor to the read back ({describe_return_code(again.code)})"
+            ) from error
+        if now != data:
+            raise WriteError(
+                f"no answer ({describe_return_code(error.code)}), and the read "
+                "back shows it was not applied"
+            ) from error
 
     # -- diagnostics ---------------------------------------------------------------
 
@@ -448,6 +575,36 @@ class MasterController(Controller):
 def master_state_view(state: int) -> AlStateView:
     """The master's state word as the states a slave reports (OP ...)."""
     return al_state_view(SlaveState(state & 0xFF))
+
+
+class OutcomeUnknownError(TimeoutError):
+    """A write neither answered nor readable back: it may have landed."""
+
+
+class WriteError(RuntimeError):
+    """A write the target did not take."""
+
+
+def _why(error: Exception) -> str:
+    """Why a write failed, in a few words."""
+    if isinstance(error, AdsHandleInvalidError):
+        return (
+            f"the symbol table changed ({describe_return_code(error.code)}); "
+            "resolving again"
+        )
+    if isinstance(error, AdsError):
+        return describe_return_code(error.code)
+    return str(error) or type(error).__name__
+
+
+def _fastcs_value(attr: AttrR[Any, Any] | None, value: Any) -> Any:
+    """A written device value as the attribute's setpoints show it."""
+    if attr is None:
+        return value
+    try:
+        return attr.datatype.validate(from_device(attr, value))
+    except Exception:  # shown as it came: the write itself will say why
+        return value
 
 
 def _same_shape(old: Point, new: Point) -> bool:

@@ -39,7 +39,13 @@ from fastcs_ethercat.ioc.controllers.tree import (
 )
 from fastcs_ethercat.ioc.datatypes import AlarmBool, ExactFloat, alarm_enum
 from fastcs_ethercat.ioc.health import Health
-from fastcs_ethercat.ioc.naming import PvNames, PvRequest, alias_key, plan_pv_names
+from fastcs_ethercat.ioc.naming import (
+    MAX_PV_LENGTH,
+    PvNames,
+    PvRequest,
+    alias_key,
+    plan_pv_names,
+)
 from fastcs_ethercat.ioc.plan import MasterPlan, SystemPlan, TerminalPlan
 from fastcs_ethercat.ioc.process_stats import ProcessStats
 from fastcs_ethercat.ioc.reconnect import Reconnection
@@ -162,17 +168,8 @@ class RootController(Controller):
             return
         plan, connection = await self.plan_source()
         self.build(plan, connection)
-        shortened = self.names.shortened
-        for warning in self.warnings(with_shortened=False):
+        for warning in self.warnings():
             logger.warning("%s", warning)
-        for shortening in shortened:  # thousands with every CoE object selected
-            logger.debug("PV name shortened: %s", shortening)
-        if shortened:
-            logger.warning(
-                "%d PV names shortened to fit 60 characters (details at debug level,"
-                " or `ioc --list-pvs`)",
-                len(shortened),
-            )
         logger.info(
             "%d master(s), %d terminals, %d PVs",
             len(plan.masters),
@@ -187,6 +184,8 @@ class RootController(Controller):
         self._names = names = plan_pv_names(
             config.prefix, pv_requests(plan, ROOT_LEAVES), config.pv_aliases
         )
+        for shortening in names.shortened:  # thousands with every CoE object
+            logger.debug("PV name shortened: %s", shortening)
         self.attrs = _root_attributes(plan, config.target, self.process)
         for leaf, attr in self.attrs.items():
             self.add_attribute(names.leaves[PvRequest((), leaf)], attr)
@@ -252,8 +251,9 @@ class RootController(Controller):
                 found += terminal.unserved
         return found
 
-    def warnings(self, *, with_shortened: bool = True) -> list[str]:
-        """Everything a user should know about: nothing is dropped silently."""
+    def warnings(self) -> list[str]:
+        """Everything a user should know about: nothing is dropped silently
+        (shortened names in one line, each at debug level)."""
         plan = self.plan
         found = list(plan.warnings)
         for master in plan.masters:
@@ -264,8 +264,13 @@ class RootController(Controller):
                     else f"{terminal.slave.name}: {w}"
                     for w in terminal.warnings
                 ]
-        if with_shortened:
-            found += [f"PV name shortened: {s}" for s in self.names.shortened]
+        if shortened := self.names.shortened:
+            hashed = sum(shortening.hashed for shortening in shortened)
+            found.append(
+                f"{len(shortened)} PV name segments shortened to fit"
+                f" {MAX_PV_LENGTH} characters ({hashed} cut and given a hash);"
+                " each is logged at debug level"
+            )
         found += [f"alias matches nothing: {k}" for k in self.names.unused_aliases]
         found += [f"no PV for {src}: {why}" for src, why in self.unserved_points()]
         return list(dict.fromkeys(found))

@@ -32,7 +32,7 @@ from fastcs_ethercat.ioc.attributes import (
 )
 from fastcs_ethercat.ioc.datatypes import AlarmBool, alarm_enum
 from fastcs_ethercat.ioc.health import COMM, Health
-from fastcs_ethercat.ioc.plan import Point, TerminalPlan
+from fastcs_ethercat.ioc.plan import CoePoint, Point, TerminalPlan
 from fastcs_ethercat.terminals.meaning import RAW_SUFFIX
 
 DIAGNOSTIC_LEAVES: Final = (
@@ -52,6 +52,11 @@ SLAVE: Final = "slave"
 """Health reason: the terminal is not in OP or lost its link."""
 COE_READ: Final = "coe"
 """Health reason: a CoE value could not be read again after an outage."""
+
+
+PvPlace = tuple[str, ...]
+"""Where an attribute sits below its terminal: its sub-controller's segment
+(a channel, a CoE object), if any, then its own (`("CH1", "Value")`)."""
 
 
 def coe_leaf(attribute: str) -> str:
@@ -114,14 +119,14 @@ def al_state_text(state: SlaveState) -> str:
 class TerminalController(Controller):
     """A terminal whose type has a YAML: the symbols and CoE objects it selects.
 
-    `leaves` maps a point's symbol (or a diagnostic / CoE leaf) to its PV
-    segment, as planned by `naming`.
+    `places` maps a point's symbol (or a diagnostic / CoE leaf) to where its
+    PV sits below the terminal, as planned by `naming`.
     """
 
     def __init__(
         self,
         plan: TerminalPlan,
-        leaves: Mapping[str, str],
+        places: Mapping[str, PvPlace],
         point_io: PointIO,
         coe_io: CoeIO | None = None,
         *,
@@ -130,6 +135,8 @@ class TerminalController(Controller):
     ) -> None:
         ios: list[Any] = [point_io] if coe_io is None else [point_io, coe_io]
         super().__init__(description=_describe(plan), ios=ios)
+        self._ios = ios
+        self._places = places
         self.plan = plan
         self.health = health or Health()
         self.slave_problem = ""
@@ -138,20 +145,29 @@ class TerminalController(Controller):
         if coe_io is not None:
             coe_io.read_back = self.read_coe
         self.by_key: dict[str, AttrR[Any, Any]] = {}
-        """Point key -> the attribute it feeds (the master posts to it)."""
+        """Point key -> the attribute it feeds (the master posts to it): a
+        scaled point's raw twin, which its engineering value follows."""
+        self.shown_by_key: dict[str, AttrR[Any, Any]] = {}
+        """Point key -> the attribute that shows its value (a scaled point's
+        engineering value): what clients write, whose setpoint shows writes."""
         self.coe_attributes: list[AttrR[Any, Any]] = []
+        self.parts: dict[str, Controller] = {}
+        """Its channels and CoE objects by segment, in the order first used."""
         self.unserved: list[tuple[str, str]] = []
         """(source, reason) of every point this terminal could not serve."""
         for point in plan.points:
-            self._add_point(point, leaves, read_only)
+            self._add_point(point, read_only)
         for coe in plan.coe if coe_io is not None else ():
-            self._add_coe(coe, leaves, read_only)
+            self._add_coe(coe, read_only)
         self.diag: dict[str, AttrR[Any, Any]] = {
             "AlState": AttrR(
                 alarm_enum(AlStateView, AL_STATE_SEVERITIES), description="AL state"
             ),
             "AlStateText": AttrR(String(), description="AL state and flags"),
-            "LinkOk": AttrR(AlarmBool(severities=(2, 0)), description="Link fine"),
+            "LinkOk": AttrR(
+                AlarmBool(severities=(2, 0)),
+                description="Own link fine (ports B-D: neighbours)",
+            ),
             "LinkState": AttrR(Int(min=0, max=255), description="Link bits"),
             "CrcErrors": AttrR(Int(), description="CRC errors, all ports"),
             "Type": AttrR(
@@ -161,49 +177,72 @@ class TerminalController(Controller):
             ),
         }
         for leaf, attr in self.diag.items():
-            self.add_attribute(leaves[leaf], attr)
+            self._place(leaf, attr)
         if self.coe_attributes:
-            self.add_command(leaves[COE_REFRESH_LEAF], Command(self.refresh_coe))
+            [name] = places[COE_REFRESH_LEAF]
+            self.add_command(name, Command(self.refresh_coe))
 
-    def _add_point(
-        self, point: Point, leaves: Mapping[str, str], read_only: bool
-    ) -> None:
+    def _add_point(self, point: Point, read_only: bool) -> None:
         try:
             attr = attribute_for_point(point, read_only=read_only)
         except ValueError as error:
             self.unserved.append((point.symbol, str(error)))
             return
         assert isinstance(attr, AttrR)
-        self.add_attribute(leaves[point.symbol], attr)
-        self.by_key[point.key] = attr
+        channel = f"Channel {point.channel}" if point.channel is not None else ""
+        self._place(point.symbol, attr, channel)
+        self.by_key[point.key] = self.shown_by_key[point.key] = attr
         raw = raw_twin(point)
         if raw is not None and point.scaling is not None:  # the poller feeds raw
-            self.add_attribute(leaves[raw_leaf(point)], raw)
+            self._place(raw_leaf(point), raw, channel)
             self.health.follow(raw, attr, to_engineering(point.scaling))
             self.by_key[point.key] = raw
 
-    def _add_coe(self, coe: Any, leaves: Mapping[str, str], read_only: bool) -> None:
+    def _add_coe(self, coe: CoePoint, read_only: bool) -> None:
         source = f"CoE {coe.index:04X}:{coe.subindex:02X} {coe.attribute}"
         try:
             attr: Attribute = attribute_for_coe(coe, read_only=read_only)
         except ValueError as error:
             self.unserved.append((source, str(error)))
             return
-        self.add_attribute(leaves[coe_leaf(coe.attribute)], attr)
+        title = f"CoE 0x{coe.index:04X} {coe.object_name}".rstrip()
+        self._place(coe_leaf(coe.attribute), attr, title)
         assert isinstance(attr, AttrR)
         self.coe_attributes.append(attr)
+
+    def _place(self, leaf: str, attr: Attribute, description: str = "") -> None:
+        """Add `attr` where `places` puts it: here, or in the sub-controller of
+        its channel or CoE object (made on first use, attached in `set_path`)."""
+        place = self._places[leaf]
+        if len(place) == 1:
+            self.add_attribute(place[0], attr)
+            return
+        segment, name = place
+        sub = self.parts.get(segment)
+        if sub is None:
+            sub = Controller(description=description or None, ios=self._ios)
+            self.parts[segment] = sub
+        sub.add_attribute(name, attr)
+
+    def set_path(self, path: list[str]) -> None:
+        """FastCS gives a sub-controller its path when it is added, from its
+        parent's: the channels and CoE objects join once this has its own."""
+        super().set_path(path)
+        for segment, sub in self.parts.items():
+            self.add_sub_controller(segment, sub)
 
     async def set_diagnostics(self, state: SlaveState | None, crc: int | None) -> None:
         """Post the master's view of this slave (None: not reported this time).
 
-        A slave out of OP or without link puts only its own points in alarm.
+        A slave out of OP or cut off puts only its own points in alarm; a
+        missing link on its port B, C or D is the neighbour's, not its own.
         """
         health = self.health
         if state is not None:
             await health.post(self.diag["AlState"], al_state_view(state))
             await health.post(self.diag["AlStateText"], al_state_text(state))
             await health.post(self.diag["LinkState"], state.link)
-            await health.post(self.diag["LinkOk"], state.link == 0)
+            await health.post(self.diag["LinkOk"], not state.link_state.own_fault())
             await self._judge(state)
         if crc is not None:
             await health.post(self.diag["CrcErrors"], min(crc, 2**31 - 1))
@@ -212,7 +251,7 @@ class TerminalController(Controller):
         problem = ""
         if state.al_state != AlState.OP:
             problem = f"{self.plan.slave.name} in {al_state_text(state)}"
-        elif state.link != 0:
+        elif state.link_state.own_fault():
             problem = f"{self.plan.slave.name}: link lost (0x{state.link:02X})"
         if problem == self.slave_problem:
             return

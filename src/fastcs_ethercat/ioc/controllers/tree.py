@@ -2,9 +2,11 @@
 
 Levels: root `<prefix>`, one `MasterController` per master, one controller
 per coupler (a terminal controller that also holds the terminals behind it)
-and one per terminal. Every name comes from `naming.plan_pv_names`, which is
-given every leaf of every controller at once (`pv_requests`), so the names
-are deterministic for a plan and every shortening is reported.
+and one per terminal, with its channels and CoE objects below it. Every name
+comes from `naming.plan_pv_names`, which is given every attribute of every
+controller at once (`pv_requests`, one `PvRequest` per attribute made here
+and nowhere else), so the names are deterministic for a plan and every
+shortening is reported.
 
 Built top-down: FastCS copies a controller's path into a sub-controller when
 it is added, so a controller is attached before its own children are.
@@ -27,6 +29,7 @@ from fastcs_ethercat.ioc.controllers.terminal import (
     COE_REFRESH_LEAF,
     DIAGNOSTIC_LEAVES,
     GenericTerminalController,
+    PvPlace,
     TerminalController,
     coe_leaf,
     raw_leaf,
@@ -39,14 +42,17 @@ from fastcs_ethercat.ioc.naming import (
     NodeKind,
     PvNames,
     PvRequest,
+    coe_request,
+    point_request,
+    twin_request,
 )
 from fastcs_ethercat.ioc.plan import (
     CoePoint,
     MasterPlan,
-    Point,
     SystemPlan,
     TerminalPlan,
 )
+from fastcs_ethercat.terminals.meaning import RAW_SUFFIX
 
 
 @dataclass(frozen=True)
@@ -77,28 +83,43 @@ def slave_path(master: MasterPlan, terminal: TerminalPlan) -> tuple[Node, ...]:
     return (top, Node(NodeKind.TERMINAL, slave.name))
 
 
-def terminal_leaves(terminal: TerminalPlan) -> list[str]:
-    """Every leaf of a terminal controller: symbols (and the raw twins of
-    scaled ones), diagnostics, CoE."""
-    leaves = [point.symbol for point in terminal.points]
-    leaves += [raw_leaf(point) for point in terminal.points if converts(point)]
-    leaves += list(DIAGNOSTIC_LEAVES)
+def terminal_requests(
+    path: tuple[Node, ...], terminal: TerminalPlan
+) -> dict[str, PvRequest]:
+    """Every attribute of a terminal controller by its leaf (a point's symbol,
+    a scaled point's raw twin, a diagnostic, `Coe <attribute>`): values
+    under their channel (a raw twin beside its value), CoE values under
+    their object."""
+    requests: dict[str, PvRequest] = {}
+    for point in terminal.points:
+        request = requests[point.symbol] = point_request(path, point)
+        if converts(point):
+            leaf = raw_leaf(point)
+            requests[leaf] = twin_request(request, leaf, RAW_SUFFIX)
+    requests |= {leaf: PvRequest(path, leaf) for leaf in DIAGNOSTIC_LEAVES}
+    for coe in terminal.coe:
+        leaf = coe_leaf(coe.attribute)
+        requests[leaf] = coe_request(path, leaf, coe)
     if terminal.coe:
-        leaves += [coe_leaf(coe.attribute) for coe in terminal.coe]
-        leaves.append(COE_REFRESH_LEAF)
-    return leaves
+        requests[COE_REFRESH_LEAF] = PvRequest(path, COE_REFRESH_LEAF)
+    return requests
+
+
+def master_requests(master: MasterPlan) -> dict[str, PvRequest]:
+    """Every attribute of a master controller by its leaf."""
+    top = (Node(NodeKind.MASTER, master.name),)
+    leaves = [*MASTER_LEAVES, *(point.symbol for point in master.master_points)]
+    return {leaf: PvRequest(top, leaf) for leaf in leaves}
 
 
 def pv_requests(plan: SystemPlan, root_leaves: Sequence[str]) -> list[PvRequest]:
     """Every attribute of the tree, for `plan_pv_names`."""
     requests = [PvRequest((), leaf) for leaf in root_leaves]
     for master in plan.masters:
-        top = (Node(NodeKind.MASTER, master.name),)
-        requests += [PvRequest(top, leaf) for leaf in MASTER_LEAVES]
-        requests += [PvRequest(top, point.symbol) for point in master.master_points]
+        requests += master_requests(master).values()
         for terminal in master.terminals:
             path = slave_path(master, terminal)
-            requests += [PvRequest(path, leaf) for leaf in terminal_leaves(terminal)]
+            requests += terminal_requests(path, terminal).values()
     return requests
 
 
@@ -115,7 +136,10 @@ def build_masters(
     masters: list[MasterController] = []
     for master in plan.masters:
         top = (Node(NodeKind.MASTER, master.name),)
-        leaves = _leaves(names, top, [*MASTER_LEAVES, *_symbols(master.master_points)])
+        leaves = {
+            leaf: names.leaves[request]
+            for leaf, request in master_requests(master).items()
+        }
         controller = MasterController(
             master, leaves, connection, health, read_only=read_only
         )
@@ -148,7 +172,7 @@ def _add_terminals(
         )
         controller = kind(
             terminal,
-            _leaves(names, path, terminal_leaves(terminal)),
+            _places(names, path, terminal_requests(path, terminal)),
             master_controller.point_io,
             _coe_io(master_controller.connection, master, terminal),
             read_only=read_only,
@@ -189,14 +213,11 @@ def _bare_coupler(
     return controller
 
 
-def _symbols(points: list[Point]) -> list[str]:
-    return [point.symbol for point in points]
-
-
-def _leaves(
-    names: PvNames, path: tuple[Node, ...], leaves: list[str]
-) -> dict[str, str]:
-    return {leaf: names.leaves[PvRequest(path, leaf)] for leaf in leaves}
+def _places(
+    names: PvNames, path: tuple[Node, ...], requests: dict[str, PvRequest]
+) -> dict[str, PvPlace]:
+    """Where each attribute of the controller at `path` sits below it."""
+    return {leaf: names.below(request, len(path)) for leaf, request in requests.items()}
 
 
 def pv_entries(root: BaseController) -> list[PvEntry]:

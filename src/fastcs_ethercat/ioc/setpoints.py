@@ -1,0 +1,76 @@
+"""What an output's setpoint shows: what was written, or what the PLC holds.
+
+An output has a setpoint (the CA out record and the PVA setpoint PV) and a
+readback (`_RBV`: what the PLC holds, polled). A setpoint may never show,
+without an alarm, a value the PLC does not hold:
+
+- a write that reached the PLC: both setpoints, CA and PVA, show the value
+  (whichever protocol wrote it), no alarm of their own;
+- a write that did not (refused, target away, an invalid handle, a value the
+  type cannot hold): both show the value asked for, INVALID/WRITE, until a
+  later write succeeds or the setpoint follows the PLC again;
+- a write that timed out may have landed: the write path reads it back at
+  once (the readback decides: written or failed); if that is not answered
+  either, INVALID/TIMEOUT ("outcome unknown") until the next readback, which
+  the setpoint then shows;
+- at start, and after every reconnect and online change, INVALID/UDF until
+  the first readback, which the setpoint then takes over.
+
+The alarms themselves are `Health`'s (setpoint problems); this decides which.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Iterable
+from typing import Any, Final
+
+from fastcs.attributes import AttrR
+
+from fastcs_ethercat.ioc import fastcs_adapter
+from fastcs_ethercat.ioc.alarms import Status
+from fastcs_ethercat.ioc.health import Health
+
+logger = logging.getLogger(__name__)
+
+WAITING: Final = "waiting for the value the PLC holds"
+
+
+class Setpoints:
+    """The setpoints of one master's outputs."""
+
+    def __init__(self, health: Health) -> None:
+        self.health = health
+
+    def follow(self, attributes: Iterable[AttrR[Any, Any]]) -> None:
+        """Take over what these outputs' setpoints show from now (once their
+        PVs are served): each waits for the PLC's value."""
+        for attribute in attributes:
+            fastcs_adapter.watch_ca_puts(attribute, self.health.show_setpoint)
+            fastcs_adapter.take_over_setpoints(attribute)
+            self.health.setpoint_problem(attribute, Status.UDF, WAITING)
+            self.health.watch_value(attribute, self._from_plc)
+
+    async def _from_plc(self, attribute: AttrR[Any, Any], value: Any) -> None:
+        await fastcs_adapter.sync_setpoint(attribute, value)
+        self.health.setpoint_fine(attribute)
+
+    async def written(self, attribute: AttrR[Any, Any], value: Any) -> None:
+        """The PLC took `value`."""
+        self.health.unwatch_value(attribute)
+        await fastcs_adapter.sync_setpoint(attribute, value)
+        self.health.setpoint_fine(attribute)
+
+    async def failed(self, attribute: AttrR[Any, Any], value: Any, why: str) -> None:
+        """`value` did not reach the PLC."""
+        self.health.unwatch_value(attribute)
+        await fastcs_adapter.sync_setpoint(attribute, value)
+        self.health.setpoint_problem(attribute, Status.WRITE, why)
+
+    async def unknown(self, attribute: AttrR[Any, Any], value: Any, why: str) -> None:
+        """A write of `value` whose outcome is unknown (neither it nor a read
+        back was answered): INVALID/TIMEOUT until the next readback, which
+        the setpoint then takes over."""
+        await fastcs_adapter.sync_setpoint(attribute, value)
+        self.health.setpoint_problem(attribute, Status.TIMEOUT, why)
+        self.health.watch_value(attribute, self._from_plc)

@@ -1,0 +1,173 @@
+"""What an output's setpoint shows, in-process: FastCS's PVA PVs of an
+`AttrRW` (no CA, no target), `Health` and `Setpoints` driving them; and the
+supervisor's resync on request (a master whose handles went invalid)."""
+
+from __future__ import annotations
+
+import asyncio
+from typing import Any
+
+from fastcs.attributes import AttrRW
+from fastcs.datatypes import Int
+from fastcs.transports.epics.pva._pv_handlers import (
+    make_shared_read_pv,
+    make_shared_write_pv,
+)
+
+from fastcs_ethercat.ads.constants import AdsState
+from fastcs_ethercat.ioc.alarms import Status
+from fastcs_ethercat.ioc.health import COMM, Health
+from fastcs_ethercat.ioc.setpoints import WAITING, Setpoints
+from fastcs_ethercat.ioc.supervisor import Probe, Supervisor
+
+
+class Output:
+    """An output attribute with its PVA readback and setpoint PVs."""
+
+    def __init__(self) -> None:
+        self.attribute = AttrRW(Int(), initial_value=0)
+        self.readback = make_shared_read_pv(self.attribute)
+        self.setpoint = make_shared_write_pv(self.attribute)
+
+    def shown(self) -> tuple[tuple[Any, int, str], tuple[Any, int, str]]:
+        """(value, severity, message) of the readback, then of the setpoint."""
+
+        def of(pv: Any) -> tuple[Any, int, str]:
+            current = pv.current()
+            fields = getattr(current, "raw", current).todict()
+            severity = fields["alarm"]["severity"]
+            return (
+                fields["value"],
+                severity,
+                fields["alarm"]["message"] if severity else "",
+            )
+
+        return of(self.readback), of(self.setpoint)
+
+
+async def _settled() -> None:
+    """Let the alarms published `call_soon` (after a put's answer) land."""
+    await asyncio.sleep(0)
+    await asyncio.sleep(0)
+
+
+async def test_a_failed_write_alarms_the_setpoint_only_until_a_write_succeeds() -> None:
+    output, health = Output(), Health()
+    setpoints = Setpoints(health)
+    await health.post(output.attribute, 5)
+
+    await setpoints.failed(output.attribute, 9, "not written: refused")
+    await _settled()
+    failed = output.shown()
+    await health.post(output.attribute, 6)  # the PLC's value moves on
+    moved = output.shown()
+    await setpoints.written(output.attribute, 7)
+    await _settled()
+
+    assert failed == ((5, 0, ""), (9, 3, "WRITE: not written: refused"))
+    assert moved == ((6, 0, ""), (9, 3, "WRITE: not written: refused"))
+    assert output.shown()[1] == (7, 0, "")
+
+
+async def test_the_setpoints_own_problem_outlasts_the_readbacks() -> None:
+    """The target goes (COMM on both), a write is refused meanwhile (WRITE on
+    the setpoint), the target returns (the readback is valid again): the
+    setpoint keeps its own alarm; once that goes it shows no alarm."""
+    output, health = Output(), Health()
+    setpoints = Setpoints(health)
+    setpoints.follow([output.attribute])
+    await health.post(output.attribute, 0)
+    health.mark_invalid([output.attribute], COMM, Status.COMM, "lost")
+    lost = output.shown()
+    await setpoints.failed(output.attribute, 3, "not written: target away")
+    await _settled()
+    await health.post(output.attribute, 1)  # a fresh value: COMM is gone
+    back = output.shown()
+    health.setpoint_fine(output.attribute)
+    await _settled()
+
+    assert lost[0][1:] == lost[1][1:] == (3, "COMM: lost")
+    assert back == ((1, 0, ""), (3, 3, "WRITE: not written: target away"))
+    assert output.shown()[1] == (3, 0, "")
+
+
+async def test_a_setpoint_waits_for_and_takes_the_plcs_value() -> None:
+    """After start, a reconnect or an online change: UDF until the first
+    value, which the setpoint then shows; also one held while in alarm."""
+    output, health = Output(), Health()
+    setpoints = Setpoints(health)
+    setpoints.follow([output.attribute])
+    await _settled()
+    waiting = output.shown()[1]
+    await health.post(output.attribute, 42)
+    await _settled()
+    taken = output.shown()[1]
+    health.mark_invalid([output.attribute], "slave", Status.STATE, "not in OP")
+    setpoints.follow([output.attribute])
+    await health.post(output.attribute, 43)  # held: the terminal is not in OP
+    await _settled()
+    held = output.shown()[1]
+    await health.mark_ok([output.attribute], "slave")
+    await _settled()
+
+    assert waiting == (0, 3, f"UDF: {WAITING}")
+    assert taken == (42, 0, "")
+    assert held == (42, 3, f"UDF: {WAITING}")
+    assert output.shown() == ((43, 0, ""), (43, 0, ""))
+
+
+async def test_an_unknown_outcome_waits_for_the_readback() -> None:
+    output, health = Output(), Health()
+    setpoints = Setpoints(health)
+    await setpoints.unknown(output.attribute, 8, "outcome unknown: no answer")
+    await _settled()
+    unknown = output.shown()[1]
+    await health.post(output.attribute, 2)  # the write did not land after all
+    await _settled()
+
+    assert unknown == (8, 3, "TIMEOUT: outcome unknown: no answer")
+    assert output.shown()[1] == (2, 0, "")
+
+
+class Link:
+    """Counts what the supervisor asks of the IOC."""
+
+    def __init__(self) -> None:
+        self.resyncs: list[str] = []
+
+    async def lost(self, reason: str) -> None:
+        raise AssertionError(reason)
+
+    async def stopped(self, ads_state: int) -> None:
+        raise AssertionError(ads_state)
+
+    async def reconnect(self) -> int:
+        raise AssertionError("no reconnect")
+
+    async def resync(self, why: str) -> int:
+        self.resyncs.append(why)
+        return 7
+
+
+async def test_a_master_can_ask_for_a_resync_at_most_once_a_second() -> None:
+    """The device port may not answer 0xF008: a handle that went invalid is
+    then the only sign of an online change."""
+
+    async def probe() -> Probe:
+        return Probe(int(AdsState.RUN), 7)
+
+    link = Link()
+    supervisor = Supervisor(probe, link, 7)
+    await supervisor.step()
+    supervisor.request_resync("symbol handles invalid")
+    supervisor.request_resync("a write's handle invalid")
+    await supervisor.step()
+    await supervisor.step()
+    supervisor.request_resync("again at once")
+    await supervisor.step()
+    deferred = list(link.resyncs)
+    supervisor._last_requested -= 1.0  # a second later
+    await supervisor.step()
+
+    assert deferred == ["symbol handles invalid"]
+    assert link.resyncs == ["symbol handles invalid", "again at once"]
