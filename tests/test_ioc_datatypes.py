@@ -11,7 +11,11 @@ from lxml import etree
 
 from fastcs_ethercat.esi.dictionary import parse_data_type
 from fastcs_ethercat.esi.model import EsiDataType
-from fastcs_ethercat.ioc.attributes import coe_datatype, from_engineering
+from fastcs_ethercat.ioc.attributes import (
+    coe_datatype,
+    engineering_value,
+    from_engineering,
+)
 from fastcs_ethercat.ioc.datatypes import (
     EXACT_DOUBLE_INTEGER,
     AlarmBool,
@@ -215,3 +219,8 @@ def test_values_written_in_engineering_units_become_counts() -> None:
     assert from_engineering(point("REAL"), 1.0) == pytest.approx(3276.7)
     unscaled = Point("k", "s", "a", "INT", PointKind.SCALAR, 0xF020, 0, 2)
     assert from_engineering(unscaled, 7) == 7
+    # what the setpoint then shows: the count written, in volts
+    assert engineering_value(point("INT"), 8192) == pytest.approx(2.50008, abs=1e-5)
+    shown = engineering_value(point("INT", PointKind.ARRAY), [0, 16384, -32767])
+    assert shown.tolist() == pytest.approx([0.0, 5.00015, -10.0], abs=1e-5)
+    assert engineering_value(unscaled, 7) == 7

@@ -477,8 +477,12 @@ def test_caput_in_volts_writes_counts(demo: Demo) -> None:
     in_image = wait_for(lambda: demo.sim.get_symbol(symbol) == 8192, 10)
     readback = wait_for(lambda: caget(demo.ioc, pv + "_RBV").get(pv + "_RBV"), 10)
 
+    setpoint = caget(demo.ioc, "-a", pv)[pv].split()  # date, time, value
+
     assert in_image  # 2.5 V / (10 V / 32767) = 8191.75 -> 8192 counts
     assert float(readback) == pytest.approx(8192 * 10 / 32767, abs=1e-4)
+    assert len(setpoint) == 3  # the count written, in volts, with no alarm
+    assert float(setpoint[2]) == pytest.approx(8192 * 10 / 32767, abs=1e-4)
 
 
 _CAMONITOR_LINE = re.compile(
