@@ -282,7 +282,7 @@ def test_unknown_terminal_gets_the_generic_controller(demo: Demo) -> None:
     values = caget(demo.ioc, "-S", f"{generic}:Type", f"{generic}:AlState")
 
     assert any(source.startswith("Term 10 (EL3202).") for source in sources)
-    assert values[f"{generic}:Type"] == "unknown"
+    assert values[f"{generic}:Type"] == "EL3202"  # as the master reports it
     assert values[f"{generic}:AlState"] == "OP"
 
 

@@ -127,6 +127,7 @@ class TerminalPlan:
     terminal_type: str | None  # YAML type name; None: unknown -> generic
     exact_revision: bool = True
     active_group: str | None = None  # detected from the live symbols
+    oversampling: int | None = None  # samples per cycle in the live table
     points: list[Point] = field(default_factory=list)
     coe: list[CoePoint] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
@@ -155,3 +156,6 @@ class SystemPlan:
     symbol_version: int
     masters: list[MasterPlan] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
+    offline_from: str = ""
+    """Where a plan made without the target came from (a chain file, the
+    cache); "" for a plan discovered on the live target."""

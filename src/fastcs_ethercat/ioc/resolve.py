@@ -2,8 +2,11 @@
 
 The live table is the only truth about which PDOs exist (dynamic PDOs), their
 addresses, array lengths (oversampling) and member layouts (data-type table);
-the YAML adds names, selection and CoE objects. A terminal without YAML gets
-a generic plan: every live symbol, read-only.
+the YAML adds names, selection and CoE objects. A terminal whose revision has
+no YAML is served from the nearest revision of its product code, matched to
+the live table by name: what the live table lacks is dropped, in one warning
+naming both revisions. Only a product code without any YAML gets a generic
+plan: every live symbol, read-only.
 """
 
 from __future__ import annotations
@@ -37,11 +40,8 @@ from fastcs_ethercat.terminals.meaning import (
 )
 from fastcs_ethercat.terminals.model import CoeObject, TerminalType
 from fastcs_ethercat.terminals.names import snake_name, take_unique
-from fastcs_ethercat.terminals.registry import TerminalRegistry
-from fastcs_ethercat.terminals.symbols import (
-    ExpandedSymbol,
-    expanded_symbols,
-)
+from fastcs_ethercat.terminals.registry import RegistryMatch, TerminalRegistry
+from fastcs_ethercat.terminals.symbols import ExpandedSymbol, expanded_symbols
 
 BIT_GROUPS = frozenset(
     {IndexGroup.IO_IMAGE_RW_INPUT_BITS, IndexGroup.IO_IMAGE_RW_OUTPUT_BITS}
@@ -52,6 +52,8 @@ RUNTIME_ATTRIBUTES = {
     "WcState.InputToggle": "input_toggle",
 }
 """TwinCAT's per-terminal runtime symbols (not in the ESI) and their names."""
+SHOWN_DROPPED = 3
+"""Symbols a warning names before it says how many more there are."""
 
 Types = Mapping[str, AdsDataTypeEntry]
 NUMBER_KINDS = frozenset({PointKind.SCALAR, PointKind.ARRAY})
@@ -318,16 +320,11 @@ def resolve_terminal(
     plan = TerminalPlan(
         slave=slave, terminal_type=match.type_name, exact_revision=match.exact
     )
-    if not match.exact:
-        plan.warnings.append(
-            f"{slave.name}: revision 0x{slave.revision:08x} has no YAML; using "
-            f"{match.type_name} revision "
-            f"0x{terminal.identity.revision_number:08x}"
-        )
     prefix = f"{slave.name}."
     live = {e.name[len(prefix) :]: e for e in entries if e.name.startswith(prefix)}
     symbols = views.symbols(terminal)
     plan.active_group = detect_active_group(terminal, symbols, live)
+    plan.oversampling = oversampling_factor(terminal, symbols, live)
     wanted = terminal.active_group
     if wanted is not None and plan.active_group not in (None, wanted.name):
         plan.warnings.append(
@@ -335,14 +332,19 @@ def resolve_terminal(
             f"YAML selects {wanted.name!r}; serving {plan.active_group!r}"
         )
     names: set[str] = set()
+    dropped: list[str] = []
     for symbol in chosen_symbols(terminal, symbols, plan.active_group):
         entry = live.get(symbol.name)
         if entry is None:
-            plan.warnings.append(f"{slave.name}: no live symbol {symbol.name!r}")
+            dropped.append(symbol.name)
             continue
         plan.points.extend(
             _yaml_points(master, entry, symbol, types, names, match.type_name)
         )
+    if not match.exact or dropped:
+        described = {symbol.name for symbol in symbols} | RUNTIME_ATTRIBUTES.keys()
+        unknown = sum(1 for rest in live if rest not in described)
+        plan.warnings.append(_match_warning(slave, match, dropped, unknown))
     for rest, attribute in RUNTIME_ATTRIBUTES.items():
         entry = live.get(rest)
         if entry is not None:
@@ -353,6 +355,48 @@ def resolve_terminal(
                 )
     plan.coe = views.coe(terminal)
     return plan
+
+
+def _match_warning(
+    slave: SlaveInfo, match: RegistryMatch, dropped: list[str], unknown: int
+) -> str:
+    """One line: which YAML serves the slave, what the live table lacks and
+    how many live symbols the YAML does not describe."""
+    text = f"{slave.name}: "
+    if not match.exact:
+        text += (
+            f"revision 0x{slave.revision:08x} has no YAML; served from "
+            f"{match.type_name} revision 0x{match.revision:08x}"
+        )
+    if dropped:
+        shown = ", ".join(repr(name) for name in dropped[:SHOWN_DROPPED])
+        more = len(dropped) - SHOWN_DROPPED
+        if more > 0:
+            shown += f" and {more} more"
+        text += "; " if not match.exact else ""
+        text += f"{len(dropped)} selected symbols not on the target, dropped: {shown}"
+    if unknown:
+        text += f"; {unknown} live symbols it does not describe, not served"
+    return text
+
+
+def oversampling_factor(
+    terminal: TerminalType,
+    symbols: Sequence[ExpandedSymbol],
+    live: Mapping[str, AdsSymbolEntry],
+) -> int | None:
+    """Samples per cycle as the live table has them: an oversampled symbol's
+    live size over one sample's (None: not an oversampling terminal, or the
+    factor follows the PDO group)."""
+    oversampling = terminal.oversampling
+    if oversampling is None or oversampling.by_group:
+        return None
+    for symbol in symbols:
+        entry = live.get(symbol.name)
+        node = terminal.symbol_nodes[symbol.node_index]
+        if entry is not None and node.oversampled and symbol.sample_bit_size:
+            return max(1, 8 * entry.size // symbol.sample_bit_size)
+    return None
 
 
 def _yaml_points(

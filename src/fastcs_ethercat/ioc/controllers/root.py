@@ -1,20 +1,24 @@
 """The root controller: start-up (discovery, the tree), the link, statistics.
 
 FastCS calls `initialise()` before it builds the transports: the root finds
-its plan there (`PlanSource`: discovery on the live target by default; a
-cached or configured chain can stand in, the seam for booting without the
-PLC), names every PV at once and builds one `MasterController` per master
-below it. Once the transports serve, `start()` hands over to the
-`Reconnection` component (pollers, supervisor, CoE reads); FastCS's
-`disconnect()` stops it all. Statistics come from the masters' pollers and
-the supervisor, read once a second; nothing here raises out of its scan.
+its plan there (`PlanSource`, `ioc.boot`: the live target, or a configured or
+cached chain while the PLC does not answer), names every PV at once and
+builds one `MasterController` per master below it. Every plan discovered on
+the live target (at start and after every resync) is kept as this target's
+chain (`ioc.chains`), for the next start without the PLC. Once the
+transports serve, `start()` hands over to the `Reconnection` component
+(pollers, supervisor, CoE reads); a tree built from a chain starts with
+every target PV INVALID/COMM and the supervisor looking for the target.
+FastCS's `disconnect()` stops it all. Statistics come from the masters'
+pollers and the supervisor, read once a second; nothing here raises out of
+its scan.
 """
 
 from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Awaitable, Callable
+from collections.abc import Callable, Collection, Sequence
 from dataclasses import dataclass
 from typing import Any, Final
 
@@ -25,6 +29,8 @@ from fastcs.methods import scan
 
 from fastcs_ethercat import __version__
 from fastcs_ethercat.ioc.alarms import Status
+from fastcs_ethercat.ioc.boot import PlanSource
+from fastcs_ethercat.ioc.chains import remember
 from fastcs_ethercat.ioc.config import IocConfig
 from fastcs_ethercat.ioc.connection import Connection
 from fastcs_ethercat.ioc.controllers.master import MasterController
@@ -38,7 +44,7 @@ from fastcs_ethercat.ioc.controllers.tree import (
     slave_path,
 )
 from fastcs_ethercat.ioc.datatypes import AlarmBool, ExactFloat, alarm_enum
-from fastcs_ethercat.ioc.health import Health
+from fastcs_ethercat.ioc.health import COMM, Health
 from fastcs_ethercat.ioc.naming import (
     MAX_PV_LENGTH,
     PvNames,
@@ -50,11 +56,16 @@ from fastcs_ethercat.ioc.plan import MasterPlan, SystemPlan, TerminalPlan
 from fastcs_ethercat.ioc.process_stats import ProcessStats
 from fastcs_ethercat.ioc.reconnect import Reconnection
 from fastcs_ethercat.ioc.supervisor import LinkState
+from fastcs_ethercat.logs import log_at_most
 from fastcs_ethercat.terminals.registry import TerminalRegistry
 
 logger = logging.getLogger(__name__)
 
 STATS_PERIOD_S: Final = 1.0
+WARNINGS_SHOWN: Final = 15
+"""Start-up warnings logged before one line says how many more there are."""
+NAMES_SHOWN: Final = 3
+"""Terminals a folded warning names before it counts the rest."""
 PROCESS_LEAVES: Final = (
     "Version",
     "StartTime",
@@ -94,9 +105,6 @@ ROOT_LEAVES: Final = (
     "InvalidPvs",
     *PROCESS_LEAVES,
 )
-
-PlanSource = Callable[[], Awaitable[tuple[SystemPlan, Connection]]]
-"""What the root serves and how it reaches the target: discovery by default."""
 
 
 @dataclass
@@ -167,15 +175,23 @@ class RootController(Controller):
         if self._plan is not None:
             return
         plan, connection = await self.plan_source()
+        started = time.monotonic()
         self.build(plan, connection)
-        for warning in self.warnings():
-            logger.warning("%s", warning)
         logger.info(
-            "%d master(s), %d terminals, %d PVs",
-            len(plan.masters),
-            sum(len(m.terminals) for m in plan.masters),
+            "%d PVs planned in %.1f s; creating their records",
             self.pv_count,
+            time.monotonic() - started,
         )
+        log_at_most(
+            logger,
+            logging.WARNING,
+            fold_by_terminal(self.warnings(), self._slave_names()),
+            WARNINGS_SHOWN,
+            "warnings (every one: `ioc --list-pvs`, or at debug level)",
+        )
+
+    def _slave_names(self) -> set[str]:
+        return {t.slave.name for m in self.plan.masters for t in m.terminals}
 
     def build(self, plan: SystemPlan, connection: Connection) -> None:
         """The attributes of the root and every controller below, for `plan`."""
@@ -202,6 +218,8 @@ class RootController(Controller):
     ) -> tuple[list[AttrR[Any, Any]], list[AttrR[Any, Any]]]:
         """Every master polls what `plan` (a discovery) has of its points;
         (attributes gone from the target, attributes served)."""
+        if not plan.offline_from:
+            remember(plan, self.config.target)
         by_name = {m.name: m for m in plan.masters}
         gone: list[AttrR[Any, Any]] = []
         served: list[AttrR[Any, Any]] = []
@@ -284,9 +302,24 @@ class RootController(Controller):
         of SDO uploads (mailbox round trips on a real bus) would hold up the
         start. Until read, each is INVALID (UDF).
         """
+        plan = self.plan
+        logger.info(
+            "serving %d PVs of %d terminals on %d master(s)%s",
+            self.pv_count,
+            sum(len(m.terminals) for m in plan.masters),
+            len(plan.masters),
+            " (INVALID until the target answers)" if plan.offline_from else "",
+        )
         self.health.publisher.start()
         coe = [a for t in self.terminals() for a in t.coe_attributes]
         self.health.mark_invalid(coe, COE_READ, Status.UDF, "not read yet")
+        if plan.offline_from:
+            self.health.mark_invalid(
+                self.target_attributes(),
+                COMM,
+                Status.COMM,
+                f"target not reached since start (served from {plan.offline_from})",
+            )
         self.reconnection.start()
 
     async def disconnect(self) -> None:
@@ -349,12 +382,46 @@ class RootController(Controller):
         await post(a["LastRecovery"], link.last_recovery_s)
         await post(a["ChainChanges"], self.reconnection.chain_changes[:200])
         await post(a["InvalidPvs"], min(self.health.invalid_count, 2**31 - 1))
-        await post(a["SymbolVersion"], self.reconnection.live.symbol_version)
+        live = self.reconnection.live
+        await post(a["SymbolVersion"], live.symbol_version)
+        await post(a["DeviceName"], live.device_name)
+        await post(a["DeviceVersion"], live.device_version)
         sample = self.process.sample()
         await post(a["Uptime"], sample.uptime_s)
         await post(a["CpuLoad"], sample.cpu_percent)
         await post(a["MemoryUsed"], sample.memory_mib)
         await post(a["PollOverruns"], min(sum(s.overruns for s in stats), 2**31 - 1))
+
+
+def fold_by_terminal(warnings: Sequence[str], terminals: Collection[str]) -> list[str]:
+    """One line for what several terminals say alike (`Term 5 (EL3104): X`
+    and `Term 29 (EL3104): X` -> `2 terminals (Term 5 (EL3104), Term 29
+    (EL3104)): X`): a rack repeats its types, and so would its warnings."""
+    by_text: dict[str, list[str]] = {}
+    order: list[tuple[str, str]] = []
+    for warning in warnings:
+        name, colon, text = warning.partition(": ")
+        if not colon or name not in terminals:
+            order.append(("", warning))
+            continue
+        if text not in by_text:
+            by_text[text] = []
+            order.append((text, ""))
+        by_text[text].append(name)
+    folded: list[str] = []
+    for text, warning in order:
+        if not text:
+            folded.append(warning)
+            continue
+        names = by_text[text]
+        if len(names) == 1:
+            folded.append(f"{names[0]}: {text}")
+            continue
+        shown = ", ".join(names[:NAMES_SHOWN])
+        if len(names) > NAMES_SHOWN:
+            shown += f" and {len(names) - NAMES_SHOWN} more"
+        folded.append(f"{len(names)} terminals ({shown}): {text}")
+    return folded
 
 
 def _root_attributes(

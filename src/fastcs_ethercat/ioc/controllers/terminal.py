@@ -172,8 +172,10 @@ class TerminalController(Controller):
             "CrcErrors": AttrR(Int(), description="CRC errors, all ports"),
             "Type": AttrR(
                 String(),
-                initial_value=plan.terminal_type or UNKNOWN_TYPE,
-                description="Terminal type (YAML)",
+                initial_value=plan.slave.type_name
+                or plan.terminal_type
+                or UNKNOWN_TYPE,
+                description="Terminal type the master reports",
             ),
         }
         for leaf, attr in self.diag.items():
@@ -302,7 +304,8 @@ class GenericTerminalController(TerminalController):
     """A terminal with no YAML of its type: whatever symbols discovery found.
 
     Same attributes and diagnostics as a known terminal; its `Type` reads
-    `unknown` and its description names the identity the master reported.
+    what the master reports (`unknown` if nothing) and its description
+    names the identity the master reported.
     """
 
 
