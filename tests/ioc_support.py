@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import yaml
 from p4p.client.thread import Context
 
 from fastcs_ethercat.sim.process import SimProcess
@@ -209,6 +210,56 @@ def parse_fields(text: str) -> dict[str, Any]:
 
 
 IOC_COMMAND: tuple[str, ...] = (sys.executable, "-m", "fastcs_ethercat", "ioc")
+
+
+def write_ioc_config(
+    folder: Path, prefix: str, target: str, ams_net_id: str, **settings: Any
+) -> Path:
+    """`folder/ioc.yaml` for an IOC of `target` (more keys in `settings`)."""
+    config = folder / "ioc.yaml"
+    config.write_text(
+        yaml.safe_dump(
+            {"prefix": prefix, "target": target, "ams_net_id": ams_net_id, **settings}
+        )
+    )
+    return config
+
+
+def list_pvs_text(config: Path, env: dict[str, str], *flags: str) -> str:
+    """What `ioc --config CONFIG --list-pvs FLAGS...` prints."""
+    done = subprocess.run(
+        [*IOC_COMMAND, "--config", str(config), "--list-pvs", *flags],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "Traceback" not in done.stderr
+    return done.stdout
+
+
+def list_pvs(config: Path, env: dict[str, str], *flags: str) -> list[list[str]]:
+    """The PV list as [name, access, type, source] rows (a source may hold
+    spaces)."""
+    text = list_pvs_text(config, env, *flags)
+    return [line.split(" ", 3) for line in text.splitlines()]
+
+
+def read_pvs_by_source(
+    config: Path, env: dict[str, str], chain: Path | None = None
+) -> dict[str, str]:
+    """Source (TwinCAT symbol, `CoE:8000:11`, `ioc`) -> name of its first read
+    PV, from `ioc --list-pvs` (of `chain` without the PLC, when given): tests
+    find PVs by where their values come from, not by a naming pattern."""
+    flags = ["--chain", str(chain)] if chain is not None else []
+    found: dict[str, str] = {}
+    for name, access, _, source in list_pvs(config, env, *flags):
+        if access == "r":
+            found.setdefault(source, name)
+    return found
+
+
 SELECTED_COE_OBJECT = "ai_settings_8000"
 """EL3104's `AI Settings` (0x8000): the CoE object test IOCs serve."""
 

@@ -26,7 +26,7 @@ from fastcs_ethercat.ads.commands import (
     WriteRequest,
     WriteResponse,
     decode_request,
-    error_response,
+    error_packet,
 )
 from fastcs_ethercat.ads.constants import (
     AdsReturnCode,
@@ -83,9 +83,7 @@ class StandInTarget:
         if self.forced_error is not None:
             code, only = self.forced_error
             if only is None or only == group:
-                return packet.response(
-                    payload=error_response(int(packet.command), code).encode()
-                )
+                return error_packet(packet, code)
         match packet.command:
             case AmsCommand.READ_DEVICE_INFO:
                 answer = ReadDeviceInfoResponse(

@@ -12,8 +12,8 @@ from pathlib import Path
 
 import pytest
 
+from fastcs_ethercat.process import parse_ready_line
 from fastcs_ethercat.sim.process import SimProcess, SimProcessError
-from fastcs_ethercat.sim.runner import READY_PREFIX, parse_ready_line
 from tests.conftest import REPO_ROOT
 
 pytestmark = pytest.mark.e2e
@@ -74,8 +74,8 @@ def test_cli_prints_the_ready_line_with_default_host() -> None:
     try:
         assert process.stdout is not None
         line = process.stdout.readline().strip()
-        assert line.startswith(READY_PREFIX)
-        fields = parse_ready_line(line)
+        fields = parse_ready_line(line, "sim")
+        assert fields is not None, line
         assert fields["tcp"].startswith("127.0.0.1:")
         assert fields["udp"].startswith("127.0.0.1:")
         assert fields["control"] == "off"

@@ -42,7 +42,7 @@ def test_missing_sources_are_user_errors(tmp_path: Path) -> None:
         terminal_paths([tmp_path / "EL9999.yaml"])
 
 
-def test_registry_exact_and_nearest_older_revision(terminals_copy: Path) -> None:
+def test_registry_exact_and_nearest_revision(terminals_copy: Path) -> None:
     el3104 = read_terminal_file(terminals_copy / "EL3104.yaml")["EL3104"]
     registry = load_terminals([str(terminals_copy / "EL3*.yaml")])
     code = el3104.identity.product_code
@@ -51,12 +51,13 @@ def test_registry_exact_and_nearest_older_revision(terminals_copy: Path) -> None
     newer = registry.lookup(code, 0x00150000, vendor_id=2)
     assert newer is not None and not newer.exact and newer.type_name == "EL3104"
     assert newer.requested_revision == 0x00150000
-    assert registry.lookup(code, 0x00100000) is None  # only newer ones known
+    older = registry.lookup(code, 0x00100000)  # only a newer one is known
+    assert older is not None and not older.exact and older.revision == 0x00110000
     assert registry.lookup(code, 0x00150000, vendor_id=7) is None
     assert registry.lookup(0x12345678, 0x00110000) is None
 
 
-def test_nearest_older_revision_stays_within_the_variant(tmp_path: Path) -> None:
+def test_nearest_revision_prefers_the_variant(tmp_path: Path) -> None:
     el3356 = read_terminal_file(TERMINALS / "EL3356-0010.yaml")
     assert variant_of(el3356["EL3356-0010"].identity.revision_number) == 10
     plain = el3356["EL3356-0010"].model_copy(deep=True)
@@ -69,6 +70,33 @@ def test_nearest_older_revision_stays_within_the_variant(tmp_path: Path) -> None
     assert ten is not None and ten.type_name == "EL3356-0010" and not ten.exact
     zero = registry.lookup(code, 0x00140000)
     assert zero is not None and zero.type_name == "EL3356"
+    only_ten = load_terminals([tmp_path / "EL3356-0010.yaml"])
+    other = only_ten.lookup(code, 0x00140000)  # no YAML of variant 0 at all
+    assert other is not None and other.type_name == "EL3356-0010"
+    assert not other.exact
+
+
+def test_nearest_revision_in_either_direction(tmp_path: Path) -> None:
+    el3104 = read_terminal_file(TERMINALS / "EL3104.yaml")["EL3104"]
+    types = {}
+    for revision in (0x00100000, 0x00140000):
+        copy = el3104.model_copy(deep=True)
+        copy.identity.revision_number = revision
+        types[f"EL3104-R{revision >> 16:X}"] = copy
+    write_terminal_file(tmp_path / "EL3104.yaml", types)
+    registry = load_terminals([tmp_path])
+    code = el3104.identity.product_code
+
+    def nearest(revision: int) -> int:
+        match = registry.lookup(code, revision)
+        assert match is not None
+        return match.revision
+
+    assert nearest(0x000F0000) == 0x00100000  # older than every YAML
+    assert nearest(0x00110000) == 0x00100000
+    assert nearest(0x00120000) == 0x00100000  # a tie: the older
+    assert nearest(0x00130000) == 0x00140000
+    assert nearest(0x00200000) == 0x00140000  # newer than every YAML
 
 
 def test_registry_refuses_duplicates(terminals_copy: Path, tmp_path: Path) -> None:
@@ -82,3 +110,27 @@ def test_registry_refuses_duplicates(terminals_copy: Path, tmp_path: Path) -> No
     write_terminal_file(other / "EL3104.yaml", {"EL3104-COPY": el3104})
     with pytest.raises(UserError, match="has the same identity"):
         load_terminals([analog, other])
+
+
+def test_a_type_may_be_described_at_several_revisions(
+    terminals_copy: Path, tmp_path: Path
+) -> None:
+    el3104 = read_terminal_file(terminals_copy / "EL3104.yaml")["EL3104"]
+    older = el3104.model_copy(deep=True)
+    older.identity.revision_number = 0x00100000
+    other = el3104.model_copy(deep=True)
+    other.identity.product_code = 0x12345678
+    site = tmp_path / "site"
+    site.mkdir()
+    write_terminal_file(site / "EL3104.yaml", {"EL3104": older})
+    registry = load_terminals([site, terminals_copy / "EL3104.yaml"])
+    code = el3104.identity.product_code
+
+    assert registry.get("EL3104").terminal.identity.revision_number == 0x00100000
+    assert len(registry) == 2 and registry.type_names() == ["EL3104"]
+    for revision in (0x00100000, 0x00110000):
+        match = registry.lookup(code, revision)
+        assert match is not None and match.exact and match.revision == revision
+    write_terminal_file(site / "EL3104.yaml", {"EL3104": other})
+    with pytest.raises(UserError, match="with another product code"):
+        load_terminals([site, terminals_copy / "EL3104.yaml"])

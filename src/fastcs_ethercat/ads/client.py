@@ -623,16 +623,21 @@ class AdsClient:
             )
         return SymbolTables(info, symbols, data_types, symbols_raw, types_raw)
 
-    async def _upload_info(self) -> SymbolUploadInfo2:
+    async def _read_if_served(self, index_group: int, size: int, what: str) -> bytes:
+        """Up to `size` bytes at offset 0 of `index_group`; b"" when the target
+        answers that it does not serve it (one that does not answer raises)."""
         try:
-            raw = await self.read(
-                IndexGroup.SYM_UPLOAD_INFO_2, 0, UPLOAD_INFO_2_SIZE, exact=False
-            )
+            return await self.read(index_group, 0, size, exact=False)
         except (AdsConnectionError, AdsTimeoutError):
             raise
         except AdsError as error:
-            logger.debug("%s: no upload info 2 (%s): asking 0xF00C", self, error)
-            raw = b""
+            logger.debug("%s: no %s: %s", self, what, error)
+            return b""
+
+    async def _upload_info(self) -> SymbolUploadInfo2:
+        raw = await self._read_if_served(
+            IndexGroup.SYM_UPLOAD_INFO_2, UPLOAD_INFO_2_SIZE, "upload info 2 (0xF00F)"
+        )
         if len(raw) >= UPLOAD_INFO_2_SIZE:
             return self._decode("symbol upload", lambda: SymbolUploadInfo2.decode(raw))
         old = await self.read(IndexGroup.SYM_UPLOAD_INFO, 0, UPLOAD_INFO_SIZE)
@@ -644,15 +649,9 @@ class AdsClient:
             return await self.read(
                 IndexGroup.SYM_DT_UPLOAD, 0, info.data_type_table_size
             )
-        try:
-            return await self.read(
-                IndexGroup.SYM_DT_UPLOAD, 0, DATA_TYPE_TABLE_LIMIT, exact=False
-            )
-        except (AdsConnectionError, AdsTimeoutError):
-            raise
-        except AdsError as error:
-            logger.debug("%s: no data-type table: %s", self, error)
-            return b""
+        return await self._read_if_served(
+            IndexGroup.SYM_DT_UPLOAD, DATA_TYPE_TABLE_LIMIT, "data-type table"
+        )
 
     # -- notifications -------------------------------------------------------------
 

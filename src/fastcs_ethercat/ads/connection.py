@@ -322,12 +322,38 @@ class AmsTcpConnection:
     # -- connecting ------------------------------------------------------------
 
     async def _connect(self) -> None:
+        transport, protocol = await self.open_stream(lambda: _Protocol(self))
+        if self._closed:
+            transport.close()
+            raise self._cannot_reach(
+                AdsConnectionError,
+                AdsReturnCode.CLIENT_PORT_NOT_OPEN,
+                "the connection was closed",
+            )
+        sock = transport.get_extra_info("socket")
+        if sock is not None:
+            sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            if self._local_net_id is None:
+                self._local_net_id = AmsNetId.from_ip(sock.getsockname()[0])
+        self._transport = cast(asyncio.Transport, transport)
+        self._protocol = cast(_Protocol, protocol)
+        self._session = ClientSession(self.max_frame_size)
+        self.stats.connects += 1
+        logger.debug("connected to %s as %s", self.address, self._local_net_id)
+
+    async def open_stream(
+        self, protocol_factory: Callable[[], asyncio.Protocol]
+    ) -> tuple[asyncio.BaseTransport, asyncio.Protocol]:
+        """The byte stream to the router: a TCP connection to `host:tcp_port`.
+
+        The one seam for another stream (the simulator in this process, for
+        booting from a chain file); errors are the typed `AdsError`s of why
+        the router cannot be reached.
+        """
         loop = asyncio.get_running_loop()
         try:
-            transport, protocol = await asyncio.wait_for(
-                loop.create_connection(
-                    lambda: _Protocol(self), self.host, self.tcp_port
-                ),
+            return await asyncio.wait_for(
+                loop.create_connection(protocol_factory, self.host, self.tcp_port),
                 self.connect_timeout_s,
             )
         except TimeoutError:
@@ -360,23 +386,6 @@ class AmsTcpConnection:
                 AdsReturnCode.PORT_NOT_CONNECTED,
                 error.strerror or str(error),
             ) from None
-        if self._closed:
-            transport.close()
-            raise self._cannot_reach(
-                AdsConnectionError,
-                AdsReturnCode.CLIENT_PORT_NOT_OPEN,
-                "the connection was closed",
-            )
-        sock = transport.get_extra_info("socket")
-        if sock is not None:
-            sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-            if self._local_net_id is None:
-                self._local_net_id = AmsNetId.from_ip(sock.getsockname()[0])
-        self._transport = cast(asyncio.Transport, transport)
-        self._protocol = protocol
-        self._session = ClientSession(self.max_frame_size)
-        self.stats.connects += 1
-        logger.debug("connected to %s as %s", self.address, self._local_net_id)
 
     def _connect_done(self, task: asyncio.Task[None]) -> None:
         self._connecting = None

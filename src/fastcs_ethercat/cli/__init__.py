@@ -13,6 +13,7 @@ import typer
 
 from fastcs_ethercat import __version__
 from fastcs_ethercat.cli.bench import bench_command
+from fastcs_ethercat.cli.chain import chain_app
 from fastcs_ethercat.cli.ioc import demo_command, ioc_app
 from fastcs_ethercat.cli.options import (
     DEFAULT_LOG_LEVEL,
@@ -29,6 +30,7 @@ _typer_app = plain_typer(
 )
 _typer_app.add_typer(terminals_app, name="terminals")
 _typer_app.add_typer(ioc_app, name="ioc")
+_typer_app.add_typer(chain_app, name="chain")
 _typer_app.command("demo")(demo_command)
 _typer_app.command("sim")(sim_command)
 _typer_app.command("bench")(bench_command)

@@ -2,13 +2,17 @@
 
     fastcs-ethercat ioc --config ioc/bl01.yaml [--prefix P] [--target HOST[:PORT]]
                         [--ams-net-id ID] [--poll-rate HZ] [--read-only]
-                        [--acf FILE] [--list-pvs] [--log-level LEVEL]
+                        [--acf FILE] [--chain FILE]
+                        [--list-pvs [--format text|archiver|autosave]]
+                        [--log-level LEVEL]
     fastcs-ethercat ioc schema
     fastcs-ethercat demo [--prefix P] [--log-level LEVEL]
 
 Flags override the file. `--list-pvs` connects, discovers, prints every PV
-(`NAME ACCESS TYPE SOURCE`, one a line, sorted) and exits; warnings go to
-stderr as log lines.
+(`NAME ACCESS TYPE SOURCE`, one a line, sorted; or the Archiver Appliance
+list, or the autosave request) and exits; with a chain file (`--chain` or
+the config's `chain:`) it lists that chain without contacting the target.
+Warnings go to stderr as log lines.
 """
 
 from __future__ import annotations
@@ -22,13 +26,23 @@ from typing import Annotated
 import typer
 
 from fastcs_ethercat.cli.demo_hints import DemoHints, write_pv_list
-from fastcs_ethercat.cli.options import LogLevelOption, apply_log_level, plain_typer
+from fastcs_ethercat.cli.options import (
+    AmsNetIdOption,
+    LogLevelOption,
+    TargetOption,
+    apply_log_level,
+    plain_typer,
+)
 from fastcs_ethercat.cli.ports import demo_ports
 from fastcs_ethercat.errors import UserError
+from fastcs_ethercat.ioc.pvlists import PvListFormat, pv_list_text
+from fastcs_ethercat.logs import log_at_most
 from fastcs_ethercat.loopback import EPICS_LOOPBACK_ENV
 from fastcs_ethercat.shipped import DEMO_CHAIN, DEMO_CONFIG
 
 log = logging.getLogger(__name__)
+WARNINGS_SHOWN = 20
+"""Warnings `--list-pvs` logs before it says how many more (all at debug)."""
 
 ioc_app = plain_typer(
     "Serve every terminal of a TwinCAT target as EPICS PVs (CA and PVA).",
@@ -48,16 +62,8 @@ def ioc_command(
         str | None,
         typer.Option("--prefix", metavar="P", help="PV prefix (overrides the file)."),
     ] = None,
-    target: Annotated[
-        str | None,
-        typer.Option(
-            "--target", metavar="HOST[:PORT]", help="TwinCAT host[:ADS TCP port]."
-        ),
-    ] = None,
-    ams_net_id: Annotated[
-        str | None,
-        typer.Option("--ams-net-id", metavar="ID", help="AMS NetId of the target."),
-    ] = None,
+    target: TargetOption = None,
+    ams_net_id: AmsNetIdOption = None,
     poll_rate: Annotated[
         float | None, typer.Option("--poll-rate", metavar="HZ", help="Poll rate.")
     ] = None,
@@ -70,10 +76,30 @@ def ioc_command(
             "--acf", metavar="FILE", help="EPICS access security file (CA writes)."
         ),
     ] = None,
+    chain: Annotated[
+        Path | None,
+        typer.Option(
+            "--chain",
+            metavar="FILE",
+            help="Chain file (`chain dump`, the simulator's format) to serve "
+            "while the target does not answer at start; with --list-pvs, list "
+            "it without the target.",
+        ),
+    ] = None,
     list_pvs: Annotated[
         bool,
         typer.Option("--list-pvs", help="Print every PV with type and source; exit."),
     ] = False,
+    list_format: Annotated[
+        PvListFormat,
+        typer.Option(
+            "--format",
+            case_sensitive=False,
+            metavar="[text|archiver|autosave]",
+            help="What --list-pvs prints: the PV list, an Archiver Appliance "
+            "archivePV list (JSON) or an autosave request file.",
+        ),
+    ] = PvListFormat.TEXT,
     log_level: LogLevelOption = None,
 ) -> None:
     """Serve every terminal of a TwinCAT target as EPICS PVs (CA and PVA).
@@ -101,6 +127,7 @@ def ioc_command(
         "poll_rate_hz": poll_rate,
         "read_only": True if read_only else None,
         "access_security_file": str(acf) if acf is not None else None,
+        "chain": str(chain) if chain is not None else None,
     }
     settings = load_ioc_config(config, overrides)
     if settings.access_security_file is not None:
@@ -109,11 +136,13 @@ def ioc_command(
         check_acf(settings.access_security_file)
     if list_pvs:
         entries, warnings = app.list_pvs(settings)
-        for warning in warnings:
-            log.warning("%s", warning)
-        for entry in entries:
-            print(entry.line())
+        log_at_most(log, logging.WARNING, warnings, WARNINGS_SHOWN, "warnings")
+        sys.stdout.write(
+            pv_list_text(entries, list_format, settings.prefix, settings.poll_rate_hz)
+        )
         return
+    if list_format is not PvListFormat.TEXT:
+        raise UserError("--format goes with --list-pvs (or the `pv_lists_dir:` key)")
     app.serve(settings)
 
 

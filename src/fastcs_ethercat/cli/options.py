@@ -23,6 +23,20 @@ LogLevelOption = Annotated[
     ),
 ]
 DEFAULT_LOG_LEVEL: Final = LogLevel.INFO
+TargetOption = Annotated[
+    str | None,
+    typer.Option(
+        "--target", metavar="HOST[:PORT]", help="TwinCAT host[:ADS TCP port]."
+    ),
+]
+AmsNetIdOption = Annotated[
+    str | None,
+    typer.Option(
+        "--ams-net-id",
+        metavar="ID",
+        help="AMS NetId of the target (default: asked over UDP 48899).",
+    ),
+]
 
 
 def apply_log_level(level: LogLevel | None) -> None:

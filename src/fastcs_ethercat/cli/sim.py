@@ -1,24 +1,31 @@
 """`fastcs-ethercat sim`: run the TwinCAT simulator until SIGINT or SIGTERM.
 
-Also runnable as `python -m fastcs_ethercat.cli.sim ...` (what `SimProcess`
-starts), with the same one-line handling of user errors as the main CLI.
+Also runnable alone as `python -m fastcs_ethercat.cli.sim_main ...` (what
+`SimProcess` starts).
 """
 
 from __future__ import annotations
 
 import asyncio
+import logging
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 
 from fastcs_ethercat.ads.constants import ADS_TCP_PORT, ADS_UDP_PORT
-from fastcs_ethercat.cli.options import LogLevelOption, apply_log_level, plain_typer
+from fastcs_ethercat.cli.options import LogLevelOption, apply_log_level
 from fastcs_ethercat.errors import UserError
-from fastcs_ethercat.logs import LogLevel, setup_logging
 from fastcs_ethercat.shipped import BUILTIN_TERMINALS_DIR
 
+log = logging.getLogger("fastcs_ethercat.sim")
+
 SIM_HELP = "Run a simulated TwinCAT system with EtherCAT masters that speaks ADS."
+
+
+def _port_option(flag: str, serves: str) -> Any:
+    """A port option; 0 asks for any free port (what tests and benchmarks do)."""
+    return typer.Option(flag, metavar="PORT", help=f"{serves} port (0 = free).")
 
 
 def _check_port(value: int | None, option: str) -> None:
@@ -43,28 +50,25 @@ def sim_command(
             help="Directory of terminal YAML (default: the shipped types).",
         ),
     ] = None,
+    revisions: Annotated[
+        list[Path] | None,
+        typer.Option(
+            "--revisions",
+            metavar="DIR",
+            help="Terminal YAML of other revisions (files or directories; "
+            "repeatable): a slave whose chain entry gives such a revision is "
+            "played from it.",
+        ),
+    ] = None,
     host: Annotated[
         str, typer.Option("--host", metavar="ADDRESS", help="Address to bind.")
     ] = "127.0.0.1",
-    port: Annotated[
-        int,
-        typer.Option("--port", metavar="PORT", help="AMS/TCP port (0 = free)."),
-    ] = ADS_TCP_PORT,
+    port: Annotated[int, _port_option("--port", "AMS/TCP")] = ADS_TCP_PORT,
     udp_port: Annotated[
-        int,
-        typer.Option(
-            "--udp-port",
-            metavar="PORT",
-            help="UDP discovery and add-route port (0 = free).",
-        ),
+        int, _port_option("--udp-port", "UDP discovery and add-route")
     ] = ADS_UDP_PORT,
     control_port: Annotated[
-        int | None,
-        typer.Option(
-            "--control-port",
-            metavar="PORT",
-            help="HTTP JSON control API port (0 = free).",
-        ),
+        int | None, _port_option("--control-port", "HTTP JSON control API")
     ] = None,
     seed: Annotated[
         int, typer.Option("--seed", metavar="N", help="Seed of simulated signals.")
@@ -86,9 +90,9 @@ def sim_command(
     ] = False,
 ) -> None:
     """Serve a simulated TwinCAT system over ADS (prints one line when ready)."""
-    for value, option in ((port, "--port"), (udp_port, "--udp-port")):
+    ports = {"--port": port, "--udp-port": udp_port, "--control-port": control_port}
+    for option, value in ports.items():
         _check_port(value, option)
-    _check_port(control_port, "--control-port")
     if cycle_ms is not None and not cycle_ms > 0:
         raise UserError(f"--cycle-ms must be > 0, got {cycle_ms}")
     if not chain.is_file():
@@ -100,10 +104,18 @@ def sim_command(
     apply_log_level(log_level)
 
     from fastcs_ethercat.sim.chain import load_chain
+    from fastcs_ethercat.sim.resolve import load_revisions
     from fastcs_ethercat.sim.runner import SimulatorConfig, serve
     from fastcs_ethercat.sim.target import SimTarget
 
-    target = SimTarget.from_chain(load_chain(chain), terminals, seed=seed)
+    target = SimTarget.from_chain(
+        load_chain(chain),
+        terminals,
+        seed=seed,
+        revisions=load_revisions(revisions) if revisions else None,
+    )
+    for note in target.notes:
+        log.warning("%s", note)
     config = SimulatorConfig(
         host=host,
         port=port,
@@ -115,18 +127,3 @@ def sim_command(
         asyncio.run(serve(target, config, exit_with_stdin=exit_with_stdin))
     except OSError as error:
         raise UserError(f"cannot listen on {host}: {error.strerror or error}") from None
-
-
-def main() -> None:
-    """Entry point for `python -m fastcs_ethercat.cli.sim` (what `SimProcess`
-    starts): the sim command alone, logging at warning unless told."""
-    from fastcs_ethercat.cli import run_cli
-
-    setup_logging(LogLevel.WARNING)
-    app = plain_typer(SIM_HELP)
-    app.command()(sim_command)
-    run_cli(app, "fastcs-ethercat sim")
-
-
-if __name__ == "__main__":
-    main()

@@ -32,7 +32,7 @@ def read_live_terminals(
     target: str, directory: Path, ams_net_id: str | None = None
 ) -> list[LiveTerminal]:
     """Discover the target once (blocking: the editor does it before serving)."""
-    from fastcs_ethercat.ioc.app import discovery
+    from fastcs_ethercat.ioc.boot import discover_once
     from fastcs_ethercat.ioc.config import IocConfig
     from fastcs_ethercat.terminals.loader import load_terminals
 
@@ -45,15 +45,12 @@ def read_live_terminals(
     )
 
     async def go() -> list[LiveTerminal]:
-        plan, connection = await discovery(config, load_terminals((directory,)))()
-        try:
-            return [
-                LiveTerminal(t.slave.name, t.terminal_type, t.active_group)
-                for master in plan.masters
-                for t in master.terminals
-            ]
-        finally:
-            await connection.pool.close()
+        plan = await discover_once(config, load_terminals((directory,)))
+        return [
+            LiveTerminal(t.slave.name, t.terminal_type, t.active_group)
+            for master in plan.masters
+            for t in master.terminals
+        ]
 
     try:
         return asyncio.run(go())

@@ -2,60 +2,41 @@
 
     config = load_ioc_config(path, overrides)
     serve(config)           # until SIGINT/SIGTERM
-    list_pvs(config)        # connect, discover, return every PV, no EPICS
+    list_pvs(config)        # discover (or read the chain file), return every PV
 
-The root controller does the rest: its start-up discovers the target (on
-the loop that then serves, so the ADS clients and FastCS share one event
-loop) and builds the tree; once the transports serve it polls, supervises
-and reads the CoE values (see `controllers/root.py`, `reconnect.py`).
+The root controller does the rest: its start-up finds the chain (the PLC,
+else a configured or cached chain file, `ioc.boot`; on the loop that then
+serves, so the ADS clients and FastCS share one event loop) and builds the
+tree; once the transports serve it polls, supervises and reads the CoE
+values (see `controllers/root.py`, `reconnect.py`).
 """
 
 from __future__ import annotations
 
 import asyncio
+import logging
 from collections.abc import Callable
 
-from fastcs_ethercat.ads.client import AdsError
-from fastcs_ethercat.errors import UserError
-from fastcs_ethercat.ioc.clients import ClientPool
+from fastcs_ethercat.ioc.boot import PlanSource, boot_source, chain_source, live_source
 from fastcs_ethercat.ioc.config import IocConfig
-from fastcs_ethercat.ioc.connection import Connection
-from fastcs_ethercat.ioc.controllers.root import PlanSource, RootController
+from fastcs_ethercat.ioc.controllers.root import RootController
 from fastcs_ethercat.ioc.controllers.tree import PvEntry
-from fastcs_ethercat.ioc.discovery import discover
 from fastcs_ethercat.ioc.launch import LaunchOptions, run
-from fastcs_ethercat.ioc.plan import SystemPlan
-from fastcs_ethercat.ioc.target import prepare_target
+from fastcs_ethercat.ioc.pvlists import write_pv_lists
 from fastcs_ethercat.terminals.loader import load_terminals
 from fastcs_ethercat.terminals.registry import TerminalRegistry
 
+logger = logging.getLogger(__name__)
 
-def discovery(config: IocConfig, registry: TerminalRegistry) -> PlanSource:
-    """The root's plan source: prepare the target (NetId, route), connect and
-    discover everything the live target has."""
-
-    async def discover_target() -> tuple[SystemPlan, Connection]:
-        net_id = str(await prepare_target(config))
-        pool = ClientPool(config.target_host, config.target_port, config.ads_timeout_ms)
-        try:
-            plan = await discover(pool, registry, config, net_id)
-        except AdsError as error:
-            await pool.close()
-            raise UserError(
-                f"cannot discover the target: {error}", where="target"
-            ) from None
-        except BaseException:
-            await pool.close()
-            raise
-        return plan, Connection(pool, net_id, read_only=config.read_only)
-
-    return discover_target
+SourceMaker = Callable[[IocConfig, TerminalRegistry], PlanSource]
 
 
-def root_controller(config: IocConfig) -> RootController:
-    """The root of an IOC that discovers `config`'s target at start-up."""
+def root_controller(
+    config: IocConfig, source: SourceMaker = boot_source
+) -> RootController:
+    """The root of an IOC whose start-up takes its plan from `source`."""
     registry = load_terminals(config.terminal_dirs)
-    return RootController(config, discovery(config, registry), registry)
+    return RootController(config, source(config, registry), registry)
 
 
 def serve(
@@ -63,11 +44,14 @@ def serve(
     *,
     on_ready: Callable[[RootController], object] | None = None,
 ) -> None:
-    """Discover, build and serve until interrupted (this process's one IOC)."""
+    """Find the chain, build and serve until interrupted (this process's one
+    IOC); the PLC may be away at start (`ioc.boot`)."""
     root = root_controller(config)
 
     def ready() -> None:
         root.start()
+        if config.pv_lists_dir is not None:
+            write_lists(root, config)
         if on_ready is not None:
             on_ready(root)
 
@@ -86,13 +70,36 @@ def serve(
     run(root, config.prefix, options, on_ready=ready, on_built=built)
 
 
+def write_lists(root: RootController, config: IocConfig) -> None:
+    """The archiver and autosave files of what serves; a folder that cannot
+    be written costs a warning, never the IOC."""
+    assert config.pv_lists_dir is not None
+    try:
+        written = write_pv_lists(
+            config.pv_lists_dir, root.pvs(), config.prefix, config.poll_rate_hz
+        )
+    except OSError as error:
+        logger.warning(
+            "cannot write the PV lists in %s: %s", config.pv_lists_dir, error
+        )
+        return
+    logger.info("PV lists written: %s", ", ".join(str(path) for path in written))
+
+
 def list_pvs(config: IocConfig) -> tuple[list[PvEntry], list[str]]:
-    """Connect, discover and return every PV and every warning; serve nothing."""
+    """Every PV and every warning, serving nothing: of the configured chain
+    file (the target untouched), else of the target (one attempt)."""
+    chain = config.chain
+
+    def source(config: IocConfig, registry: TerminalRegistry) -> PlanSource:
+        if chain is not None:
+            return chain_source(config, registry, chain)
+        return live_source(config, registry)
 
     async def go() -> tuple[list[PvEntry], list[str]]:
         # Return plain lists, not the root: asyncio.run formats its main task's
         # result on the way out, and the repr of a large tree takes minutes.
-        root = root_controller(config)
+        root = root_controller(config, source)
         plan, connection = await root.plan_source()
         try:
             root.build(plan, connection)

@@ -141,6 +141,16 @@ class IocConfig(_Strict):
     different from every other name of the same controller."""
     transports: TransportsConfig = TransportsConfig()
     """Which EPICS protocols to serve."""
+    chain: Path | None = None
+    """A chain file (the simulator's format, e.g. from `fastcs-ethercat chain
+    dump`; relative to this file) to serve from while the target does not
+    answer at start; without it, the chain this target showed last (kept
+    under $XDG_CACHE_HOME/fastcs-ethercat/chains). `ioc --list-pvs` lists
+    it without contacting the target."""
+    pv_lists_dir: Path | None = None
+    """Where to write, at every start, the Archiver Appliance list
+    (`archiver.json`) and the autosave request file (`autosave.req`) of the
+    PVs served (relative to this file); none when unset."""
     screens_dir: Path | None = None
     """Where to write Phoebus .bob screens of the chain (relative to this
     file; in the image /epics/opi); none when unset."""
@@ -267,7 +277,7 @@ def _resolve_paths(raw: dict[str, Any], base: Path) -> None:
 
     if isinstance(raw.get("terminal_dirs"), list):
         raw["terminal_dirs"] = [resolve(item) for item in raw["terminal_dirs"]]
-    for key in ("screens_dir", "access_security_file"):
+    for key in ("screens_dir", "access_security_file", "chain", "pv_lists_dir"):
         if key in raw:
             raw[key] = resolve(raw[key])
     route = raw.get("route")

@@ -11,7 +11,7 @@ went invalid asks it to `resync`.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
 
 from fastcs_ethercat.ads.client import AdsClient
@@ -31,6 +31,9 @@ class Connection:
     """The supervisor's view of the link (set by the root's reconnection)."""
     wake: Callable[[], None] = field(default=lambda: None)
     """Ask the supervisor to probe now (set by the root's reconnection)."""
+    prepare: Callable[[], Awaitable[None]] | None = None
+    """What must happen once before the first client (the route, when the
+    IOC booted without its target); done by the first `client` call."""
     resync: Callable[[str], None] = field(default=lambda why: None)
     """Ask the supervisor to resolve every symbol again, saying why (a
     symbol handle went invalid: the table changed, whatever 0xF008 says)."""
@@ -45,6 +48,9 @@ class Connection:
 
     async def client(self, net_id: str, ams_port: int) -> AdsClient:
         """The pool's open client to `net_id:ams_port` (of the moment)."""
+        if self.prepare is not None:
+            await self.prepare()
+            self.prepare = None
         return await self.pool.get(net_id, ams_port)
 
     def check_readable(self) -> None:

@@ -5,8 +5,10 @@ that request's time, and only values that changed are posted. The posting
 itself (`Update(value, timestamp)` straight to the CA record and the PVA PV)
 is `fastcs_adapter`'s until FastCS releases its own `Update`.
 
-Alarms are not sticky here either: a published value carries NO_ALARM (see
-`ioc.alarms`, `ioc.health`).
+Alarms are not sticky here either: a published value carries its own alarm,
+NO_ALARM unless its datatype makes it an alarm state (a set Error bit: the
+severity from the datatype's table, status STATE; see `ioc.alarms`,
+`ioc.health`).
 """
 
 from __future__ import annotations
@@ -16,7 +18,12 @@ from typing import Any
 
 from fastcs.attributes import AttrR
 
+from fastcs_ethercat.ioc.alarms import state_alarm
+from fastcs_ethercat.ioc.datatypes import severity_table
 from fastcs_ethercat.ioc.fastcs_adapter import Update, ValueRoute
+
+_Route = tuple[ValueRoute, Any]
+"""An attribute's route and its datatype's severity table (None: no alarms)."""
 
 
 class Publisher:
@@ -30,7 +37,7 @@ class Publisher:
 
     def __init__(self) -> None:
         self.started = False
-        self._routes: dict[int, ValueRoute] = {}
+        self._routes: dict[int, _Route] = {}
 
     def start(self) -> None:
         self.started = True
@@ -46,10 +53,16 @@ class Publisher:
                 return False
             await attribute.update(validated)
             return True
-        route = self._routes.get(id(attribute))
-        if route is None:
-            route = self._routes[id(attribute)] = ValueRoute(attribute)
+        found = self._routes.get(id(attribute))
+        if found is None:
+            found = (ValueRoute(attribute), severity_table(datatype))
+            self._routes[id(attribute)] = found
         elif datatype.equal(attribute.get(), validated):
             return False
-        await route.publish(Update(validated, stamp or time.time()))
+        route, severity_of = found
+        if severity_of is None:
+            await route.publish(Update(validated, stamp or time.time()))
+        else:
+            alarm = state_alarm(severity_of(validated))
+            await route.publish(Update(validated, stamp or time.time(), *alarm))
         return True

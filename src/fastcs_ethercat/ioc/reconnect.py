@@ -6,6 +6,10 @@ the clients are reopened, the target discovered again, the chain compared
 with the one the tree was built for and every point re-resolved by key (each
 master's `use_plan`), so unchanged terminals keep their PVs and the process
 never restarts. CoE values are read again after every resync.
+
+A tree built from a chain file (the target did not answer at start) starts
+disconnected: the supervisor reconnects first, and the first discovery is
+compared with the chain it was built from like any other.
 """
 
 from __future__ import annotations
@@ -13,7 +17,7 @@ from __future__ import annotations
 import asyncio
 import logging
 import time
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 from typing import Any, Final, Protocol
 
 from fastcs.attributes import AttrR
@@ -92,7 +96,9 @@ class Reconnection:
         """The plan discovered last (after a reconnect); the root's built the tree."""
         self.registry = registry
         self.chain_changes = ""
-        self.supervisor = Supervisor(self.probe, self, plan.symbol_version)
+        self.supervisor = Supervisor(
+            self.probe, self, plan.symbol_version, connected=not plan.offline_from
+        )
         connection.state_of = lambda: self.supervisor.state
         connection.wake = self.supervisor.poke
         connection.resync = self.supervisor.request_resync
@@ -106,14 +112,15 @@ class Reconnection:
         self._tasks.append(asyncio.create_task(self._start()))
 
     async def _start(self) -> None:
-        try:
-            await self._start_polling()
-        except Exception as error:  # e.g. no answer to the handles: resync
-            reason = f"{type(error).__name__}: {error}"
-            logger.warning("polling did not start: %s", reason)
-            self.supervisor.request_resync(f"polling did not start ({reason})")
+        if self.connection.connected:
+            try:
+                await self._start_polling()
+            except Exception as error:  # e.g. no answer to the handles: resync
+                reason = f"{type(error).__name__}: {error}"
+                logger.warning("polling did not start: %s", reason)
+                self.supervisor.request_resync(f"polling did not start ({reason})")
+            self.start_coe_refresh()
         self._tasks.append(asyncio.create_task(self.supervisor.run()))
-        self.start_coe_refresh()
 
     async def stop(self) -> None:
         """Stop supervising and polling and close every ADS connection."""
@@ -164,7 +171,9 @@ class Reconnection:
         await self.connection.pool.close()
         server = await self.connection.client(self.connection.net_id, AmsPort.IO_SERVER)
         await server.read_state()
-        return await self.resync("reconnected")
+        origin = self.live.offline_from
+        why = f"the live one against {origin}" if origin else "reconnected"
+        return await self.resync(why)
 
     async def resync(self, why: str) -> int:
         """Discover again, compare the chain, re-resolve every point, poll."""
@@ -232,9 +241,15 @@ class Reconnection:
             async with slots:
                 await terminal.refresh_coe()
 
-        await asyncio.gather(
-            *(refresh(t) for t in self.root.terminals() if t.coe_attributes)
-        )
+        terminals = [t for t in self.root.terminals() if t.coe_attributes]
+        started = time.monotonic()
+        await asyncio.gather(*(refresh(t) for t in terminals))
+        if terminals:
+            logger.info(
+                "CoE values of %d terminals read in %.1f s",
+                len(terminals),
+                time.monotonic() - started,
+            )
 
 
 def chain_changes(old: SystemPlan, new: SystemPlan) -> list[str]:
@@ -263,4 +278,17 @@ def chain_changes(old: SystemPlan, new: SystemPlan) -> list[str]:
             found.append(f"{where} new ({now}, not served until restart)")
         else:
             found.append(f"{where} {was} -> {now}")
+    added = _point_keys(new, before.keys()) - _point_keys(old, before.keys())
+    if added:
+        found.append(f"{len(added)} live points not served until restart")
     return found
+
+
+def _point_keys(plan: SystemPlan, slaves: Collection[tuple[str, int]]) -> set[str]:
+    """Keys of the points of `plan` on its masters and on `slaves`."""
+    keys = {p.key for m in plan.masters for p in m.master_points}
+    for master in plan.masters:
+        for terminal in master.terminals:
+            if (master.name, terminal.slave.address) in slaves:
+                keys.update(p.key for p in terminal.points)
+    return keys

@@ -2,8 +2,11 @@
 
 The live table is the only truth about which PDOs exist (dynamic PDOs), their
 addresses, array lengths (oversampling) and member layouts (data-type table);
-the YAML adds names, selection and CoE objects. A terminal without YAML gets
-a generic plan: every live symbol, read-only.
+the YAML adds names, selection and CoE objects. A terminal whose revision has
+no YAML is served from the nearest revision of its product code, matched to
+the live table by name: what the live table lacks is dropped, in one warning
+naming both revisions. Only a product code without any YAML gets a generic
+plan: every live symbol, read-only.
 """
 
 from __future__ import annotations
@@ -28,9 +31,16 @@ from fastcs_ethercat.ioc.plan import (
     SlaveInfo,
     TerminalPlan,
 )
+from fastcs_ethercat.terminals.meaning import (
+    SEVERITY_LEVELS,
+    Scaling,
+    coe_unit,
+    describe,
+    severity_of_name,
+)
 from fastcs_ethercat.terminals.model import CoeObject, TerminalType
 from fastcs_ethercat.terminals.names import snake_name, take_unique
-from fastcs_ethercat.terminals.registry import TerminalRegistry
+from fastcs_ethercat.terminals.registry import RegistryMatch, TerminalRegistry
 from fastcs_ethercat.terminals.symbols import ExpandedSymbol, expanded_symbols
 
 BIT_GROUPS = frozenset(
@@ -42,8 +52,12 @@ RUNTIME_ATTRIBUTES = {
     "WcState.InputToggle": "input_toggle",
 }
 """TwinCAT's per-terminal runtime symbols (not in the ESI) and their names."""
+SHOWN_DROPPED = 3
+"""Symbols a warning names before it says how many more there are."""
 
 Types = Mapping[str, AdsDataTypeEntry]
+NUMBER_KINDS = frozenset({PointKind.SCALAR, PointKind.ARRAY})
+"""Points whose value can be served in engineering units (not status bits)."""
 
 
 def snake_case(text: str) -> str:
@@ -142,7 +156,8 @@ def _point(
     *,
     writable: bool = False,
     description: str = "",
-    units: str = "",
+    scaling: Scaling | None = None,
+    severity: int = 0,
     channel: int | None = None,
     entry_name: str = "",
 ) -> Point:
@@ -161,13 +176,32 @@ def _point(
         length=member.length,
         writable=writable,
         description=description,
-        units=units,
+        scaling=scaling,
+        severity=severity,
         channel=channel,
         entry_name=entry_name,
         source=entry.name,
         source_offset=member.byte_offset,
         source_type=entry.type_name,
         source_size=entry.size,
+    )
+
+
+def _live_point(
+    master: str, entry: AdsSymbolEntry, member: _Member, attribute: str, kind: str
+) -> Point:
+    """A point of a symbol no YAML describes (runtime, master, unknown
+    terminal): its DESC and severity from its names (read-only, so nothing
+    here is an output)."""
+    rest = entry.name.partition(".")[2] or entry.name
+    severity = severity_of_name(member.path or rest)
+    return _point(
+        master,
+        entry,
+        member,
+        attribute,
+        description=describe(kind or None, rest, member.path or None),
+        severity=SEVERITY_LEVELS[severity],
     )
 
 
@@ -274,7 +308,7 @@ def resolve_terminal(
     match = registry.lookup(slave.product_code, slave.revision, slave.vendor_id)
     if match is None:
         plan = TerminalPlan(slave=slave, terminal_type=None)
-        plan.points = generic_points(master, entries, types)
+        plan.points = generic_points(master, entries, types, slave.type_name)
         if entries:
             plan.warnings.append(
                 f"{slave.name}: no terminal YAML for product code "
@@ -286,16 +320,11 @@ def resolve_terminal(
     plan = TerminalPlan(
         slave=slave, terminal_type=match.type_name, exact_revision=match.exact
     )
-    if not match.exact:
-        plan.warnings.append(
-            f"{slave.name}: revision 0x{slave.revision:08x} has no YAML; using "
-            f"{match.type_name} revision "
-            f"0x{terminal.identity.revision_number:08x}"
-        )
     prefix = f"{slave.name}."
     live = {e.name[len(prefix) :]: e for e in entries if e.name.startswith(prefix)}
     symbols = views.symbols(terminal)
     plan.active_group = detect_active_group(terminal, symbols, live)
+    plan.oversampling = oversampling_factor(terminal, symbols, live)
     wanted = terminal.active_group
     if wanted is not None and plan.active_group not in (None, wanted.name):
         plan.warnings.append(
@@ -303,20 +332,71 @@ def resolve_terminal(
             f"YAML selects {wanted.name!r}; serving {plan.active_group!r}"
         )
     names: set[str] = set()
+    dropped: list[str] = []
     for symbol in chosen_symbols(terminal, symbols, plan.active_group):
         entry = live.get(symbol.name)
         if entry is None:
-            plan.warnings.append(f"{slave.name}: no live symbol {symbol.name!r}")
+            dropped.append(symbol.name)
             continue
-        plan.points.extend(_yaml_points(master, entry, symbol, types, names))
+        plan.points.extend(
+            _yaml_points(master, entry, symbol, types, names, match.type_name)
+        )
+    if not match.exact or dropped:
+        described = {symbol.name for symbol in symbols} | RUNTIME_ATTRIBUTES.keys()
+        unknown = sum(1 for rest in live if rest not in described)
+        plan.warnings.append(_match_warning(slave, match, dropped, unknown))
     for rest, attribute in RUNTIME_ATTRIBUTES.items():
         entry = live.get(rest)
         if entry is not None:
             for member in symbol_members(entry, types):
                 attribute = take_unique(attribute, names)
-                plan.points.append(_point(master, entry, member, attribute))
+                plan.points.append(
+                    _live_point(master, entry, member, attribute, match.type_name)
+                )
     plan.coe = views.coe(terminal)
     return plan
+
+
+def _match_warning(
+    slave: SlaveInfo, match: RegistryMatch, dropped: list[str], unknown: int
+) -> str:
+    """One line: which YAML serves the slave, what the live table lacks and
+    how many live symbols the YAML does not describe."""
+    text = f"{slave.name}: "
+    if not match.exact:
+        text += (
+            f"revision 0x{slave.revision:08x} has no YAML; served from "
+            f"{match.type_name} revision 0x{match.revision:08x}"
+        )
+    if dropped:
+        shown = ", ".join(repr(name) for name in dropped[:SHOWN_DROPPED])
+        more = len(dropped) - SHOWN_DROPPED
+        if more > 0:
+            shown += f" and {more} more"
+        text += "; " if not match.exact else ""
+        text += f"{len(dropped)} selected symbols not on the target, dropped: {shown}"
+    if unknown:
+        text += f"; {unknown} live symbols it does not describe, not served"
+    return text
+
+
+def oversampling_factor(
+    terminal: TerminalType,
+    symbols: Sequence[ExpandedSymbol],
+    live: Mapping[str, AdsSymbolEntry],
+) -> int | None:
+    """Samples per cycle as the live table has them: an oversampled symbol's
+    live size over one sample's (None: not an oversampling terminal, or the
+    factor follows the PDO group)."""
+    oversampling = terminal.oversampling
+    if oversampling is None or oversampling.by_group:
+        return None
+    for symbol in symbols:
+        entry = live.get(symbol.name)
+        node = terminal.symbol_nodes[symbol.node_index]
+        if entry is not None and node.oversampled and symbol.sample_bit_size:
+            return max(1, 8 * entry.size // symbol.sample_bit_size)
+    return None
 
 
 def _yaml_points(
@@ -325,10 +405,13 @@ def _yaml_points(
     symbol: ExpandedSymbol,
     types: Types,
     names: set[str],
+    type_name: str,
 ) -> list[Point]:
     members = symbol_members(entry, types) or _fallback_members(symbol)
     by_path = {".".join(m.path): m for m in symbol.members}
     by_last = {m.path[-1]: m for m in symbol.members}
+    if len(symbol.members) == 1:  # a one-entry PDO is a symbol of the entry's type
+        by_path[""] = symbol.members[0]
     writable = symbol.direction == "output"
     points: list[Point] = []
     for member in members:
@@ -350,7 +433,17 @@ def _yaml_points(
                 member,
                 take_unique(attribute, names),
                 writable=writable,
-                description=(yaml_member.comment or "") if yaml_member else "",
+                description=describe(
+                    type_name,
+                    symbol.name,
+                    yaml_member.name if yaml_member else member.path or None,
+                ),
+                scaling=(
+                    yaml_member.scaling
+                    if yaml_member and member.kind in NUMBER_KINDS
+                    else None
+                ),
+                severity=SEVERITY_LEVELS[yaml_member.severity] if yaml_member else 0,
                 channel=symbol.channel,
                 entry_name=member.path or symbol.entry_name,
             )
@@ -359,7 +452,7 @@ def _yaml_points(
 
 
 def generic_points(
-    master: str, entries: Sequence[AdsSymbolEntry], types: Types
+    master: str, entries: Sequence[AdsSymbolEntry], types: Types, kind: str = ""
 ) -> list[Point]:
     """Every live symbol of an unknown terminal, read-only, in name order."""
 
@@ -367,7 +460,7 @@ def generic_points(
         base = RUNTIME_ATTRIBUTES.get(rest) or snake_case(rest)
         return f"{base}_{snake_case(member.path)}" if member.path else base
 
-    return _live_points(master, entries, types, name)
+    return _live_points(master, entries, types, name, kind)
 
 
 def _live_points(
@@ -375,16 +468,18 @@ def _live_points(
     entries: Sequence[AdsSymbolEntry],
     types: Types,
     name: Callable[[str, _Member], str],
+    kind: str = "",
 ) -> list[Point]:
     """Every member of `entries`, read-only, in name order; `name(rest of
-    the symbol's name, member)` names each attribute (made unique)."""
+    the symbol's name, member)` names each attribute (made unique); `kind`
+    (the slave's type) starts their descriptions."""
     names: set[str] = set()
     points: list[Point] = []
     for entry in sorted(entries, key=lambda e: e.name):
         rest = entry.name.partition(".")[2]
         for member in symbol_members(entry, types):
             attribute = take_unique(name(rest, member), names)
-            points.append(_point(master, entry, member, attribute))
+            points.append(_live_point(master, entry, member, attribute, kind))
     return points
 
 
@@ -410,6 +505,7 @@ def coe_object_points(obj: CoeObject) -> list[CoePoint]:
                 description=obj.name,
                 default=obj.default_value or obj.default_data or "",
                 enum_texts=tuple((e.value, e.text) for e in obj.enum),
+                units=coe_unit(obj.unit),
                 name=obj.name,
                 object_name=obj.name,
             )
@@ -427,6 +523,7 @@ def coe_object_points(obj: CoeObject) -> list[CoePoint]:
             description=f"{obj.name}: {sub.name}",
             default=sub.default_value or sub.default_data or "",
             enum_texts=tuple((e.value, e.text) for e in sub.enum),
+            units=coe_unit(sub.unit or obj.unit),
         )
         for sub in obj.sub_items
         if sub.selected

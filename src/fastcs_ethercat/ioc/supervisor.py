@@ -12,6 +12,10 @@ work:
   went invalid (`request_resync`: the only sign of an online change where
   the device port does not answer 0xF008): `resync`.
 
+An IOC that booted without its target (from a chain file) starts
+disconnected: it reconnects first. Failed attempts are logged at most once
+per `RECONNECT_LOG_INTERVAL_S`.
+
 A beamline IOC runs for months: nothing here ends except by cancellation.
 """
 
@@ -27,6 +31,7 @@ from enum import StrEnum
 from typing import Final, Protocol
 
 from fastcs_ethercat.ads.constants import AdsState
+from fastcs_ethercat.ads.ratelimit import RateLimitedLog
 
 logger = logging.getLogger(__name__)
 
@@ -36,6 +41,9 @@ PROBE_TIMEOUT_S: Final = 0.5
 to mark every PV INVALID: inside the 1 s issue 5 asks for, while a probe may
 still take half a second on a loaded host before it counts as lost."""
 RECONNECT_TIMEOUT_S: Final = 30.0
+RECONNECT_LOG_INTERVAL_S: Final = 10.0
+"""At most one line per this interval about failed reconnects (an outage of
+a night would otherwise write one every backoff pause)."""
 REQUESTED_RESYNC_EVERY_S: Final = 1.0
 """Resyncs asked for by the masters come at most this often (a target whose
 handles keep failing must not make the IOC resolve in a loop)."""
@@ -121,6 +129,7 @@ class Supervisor:
         period_s: float = PROBE_PERIOD_S,
         probe_timeout_s: float = PROBE_TIMEOUT_S,
         backoff: Backoff | None = None,
+        connected: bool = True,
     ) -> None:
         self.probe = probe
         self.link = link
@@ -129,7 +138,12 @@ class Supervisor:
         self.probe_timeout_s = probe_timeout_s
         self.backoff = backoff or Backoff()
         self.stats = SupervisorStats()
+        self._first_contact = not connected
+        if not connected:  # booted without the target: reconnect first
+            self.stats.state = LinkState.DISCONNECTED
+            self.stats.lost_at = time.monotonic()
         self._wake = asyncio.Event()
+        self._reconnect_log = RateLimitedLog(logger, RECONNECT_LOG_INTERVAL_S)
         self._resync_wanted = ""
         self._last_requested = -REQUESTED_RESYNC_EVERY_S
 
@@ -149,6 +163,8 @@ class Supervisor:
         self._wake.set()
 
     async def run(self) -> None:
+        if self.stats.state is LinkState.DISCONNECTED:
+            await self._reconnect()
         while True:
             await self.step()
             self._wake.clear()
@@ -236,7 +252,9 @@ class Supervisor:
                     else type(error).__name__
                 )
                 self.stats.last_error = f"reconnect failed: {text}"
-                logger.info("target: %s", self.stats.last_error)
+                self._reconnect_log.info(
+                    "reconnect", "target: %s (trying again)", self.stats.last_error
+                )
                 continue
             self.stats.reconnects += 1
             self._resync_wanted = ""  # the reconnect resolved every symbol
@@ -248,6 +266,12 @@ class Supervisor:
         if stats.lost_at:
             stats.last_recovery_s = time.monotonic() - stats.lost_at
         stats.state = LinkState.CONNECTED
+        if self._first_contact:  # booted without it: the first answer
+            self._first_contact = False
+            logger.info(
+                "target answers: polling (%.1f s after start)", stats.last_recovery_s
+            )
+            return
         logger.warning(
             "target back: polling again (%.1f s after the loss)",
             stats.last_recovery_s,

@@ -1,8 +1,10 @@
 """Everything before the first ADS connection: local NetId, route, target NetId.
 
 A target that does not answer or refuses the route is the user's to fix (wrong
-host, wrong password), so failures here become one-line `UserError`s naming
-the configuration key; the password never appears in them.
+host, wrong password), so failures here become one-line `TargetError`s naming
+the configuration key; the password never appears in them. A `TargetError`
+is also what the IOC waits out at start (the PLC may come later); every
+other `UserError` (a password variable that is not set) stops it.
 """
 
 from __future__ import annotations
@@ -17,6 +19,10 @@ from fastcs_ethercat.ads.client import (
 from fastcs_ethercat.ads.netid import AmsNetId
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.ioc.config import IocConfig
+
+
+class TargetError(UserError):
+    """The target cannot be reached, or refused what was asked of it."""
 
 
 async def prepare_target(config: IocConfig) -> AmsNetId:
@@ -45,8 +51,8 @@ async def prepare_target(config: IocConfig) -> AmsNetId:
         return await discover_net_id(host)
     except AdsError as error:
         where = "route" if error.operation == "add route" else "target"
-        raise UserError(str(error), where=where) from None
+        raise TargetError(str(error), where=where) from None
     except OSError as error:
-        raise UserError(
+        raise TargetError(
             f"cannot reach {host}: {error.strerror or error}", where="target"
         ) from None

@@ -33,6 +33,12 @@ Model (this package, sans-I/O) and I/O (`server`, `udp`, `control`,
     slaves, symbol counts).
 - `sim.probe.SimProbe`: an in-process client (codec in, codec out) for
   tests, benchmarks and tools.
+- `sim.inprocess.sim_clients(target)`: real `AdsClient`s over a connection
+  whose stream is a `SimTarget` of the same process (no socket): the IOC
+  discovers a chain file with it as if it were the PLC.
+- `SimTarget.from_chain(..., revisions=load_revisions(dirs))`: a slave whose
+  chain entry gives another revision is played from the YAML of that
+  revision (`SimTarget.notes` names those played from another one).
 
 Model modules: `resolve` (chain + terminal YAML -> names, addresses,
 identities, active PDOs), `tctypes` (TwinCAT types and their names),

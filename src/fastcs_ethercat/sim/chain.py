@@ -29,7 +29,15 @@ masters:
       AI Compact Channel 2: {kind: ramp, minimum: 0, maximum: 1000}
   - type: EL3702
     oversampling: 10           # samples per cycle, one of the YAML's factors
+  - type: EL9410               # a type without terminal YAML: identity only,
+    product_code: 0x24c23052   # no process data, no CoE
 ```
+
+A `revision` other than the YAML's is played from the YAML of that revision
+when the simulator is given one (`sim --revisions DIR`: files of other
+revisions, e.g. from `terminals generate TYPE --revision REV`); otherwise the
+YAML's process data is played and the simulator says so once at start.
+`fastcs-ethercat chain dump` writes this format from a live target.
 
 Signal kinds: constant (`value`), counter (`start`, `step` per cycle), ramp
 (`minimum`..`maximum` over `period_s`), sine (`amplitude`, `offset`,
@@ -142,7 +150,20 @@ class SlaveSpec(_Model):
         default=None, description='TwinCAT name; default "Term <k> (<type>)".'
     )
     revision: int | None = Field(
-        default=None, description="Revision it reports (default: the YAML's)."
+        default=None,
+        description="Revision it reports (default: the YAML's); its process "
+        "data follows the YAML of that revision where one is given "
+        "(`sim --revisions DIR`).",
+    )
+    vendor_id: int | None = Field(
+        default=None,
+        description="Only for a type without terminal YAML: the vendor it "
+        "reports (default 2, Beckhoff).",
+    )
+    product_code: int | None = Field(
+        default=None,
+        description="Only for a type without terminal YAML: the product code "
+        "it reports; it is played with no process data and no CoE.",
     )
     serial: int = Field(default=0, ge=0, description="Serial number it reports.")
     pdo_group: str | None = Field(
@@ -160,7 +181,7 @@ class SlaveSpec(_Model):
         description="Generators by symbol or member name below the terminal.",
     )
 
-    @field_validator("revision", mode="before")
+    @field_validator("revision", "vendor_id", "product_code", mode="before")
     @classmethod
     def _revision_number(cls, value: Any) -> Any:
         return _number(value)

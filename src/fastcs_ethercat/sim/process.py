@@ -18,7 +18,6 @@ import urllib.error
 import urllib.request
 from collections.abc import Sequence
 from pathlib import Path
-from types import TracebackType
 from typing import Any, Final, Self
 from urllib.parse import quote
 
@@ -32,14 +31,16 @@ class SimProcessError(RuntimeError):
     """The simulator did not come up, or its control API said no."""
 
 
-class SimProcess:
-    """`fastcs-ethercat sim` in a subprocess, stopped (by PID) on exit."""
+class SimProcess(ChildProcess):
+    """`fastcs-ethercat sim` in a subprocess; a `with` block starts it and
+    stops it (by PID). Its stdin is held: the simulator exits when we go."""
 
     def __init__(
         self,
         chain: Path | str,
         *,
         terminals: Path | str | None = None,
+        revisions: Sequence[Path | str] = (),
         seed: int | None = None,
         host: str = "127.0.0.1",
         port: int = 0,
@@ -49,10 +50,10 @@ class SimProcess:
         env: dict[str, str] | None = None,
         ready_timeout: float = READY_TIMEOUT_SECONDS,
     ) -> None:
-        self.args = [
+        args = [
             sys.executable,
             "-m",
-            "fastcs_ethercat.cli.sim",
+            "fastcs_ethercat.cli.sim_main",
             "--chain",
             str(chain),
             "--host",
@@ -66,59 +67,25 @@ class SimProcess:
             "--exit-with-stdin",
         ]
         if terminals is not None:
-            self.args += ["--terminals", str(terminals)]
+            args += ["--terminals", str(terminals)]
+        for source in revisions:
+            args += ["--revisions", str(source)]
         if seed is not None:
-            self.args += ["--seed", str(seed)]
-        self.args += list(extra_args)
-        self._env = env
-        self._ready_timeout = ready_timeout
-        self._child: ChildProcess | None = None
-        self.fields: dict[str, str] = {}
+            args += ["--seed", str(seed)]
+        super().__init__([*args, *extra_args], "sim", env=env, stdin_pipe=True)
+        self.ready_timeout = ready_timeout
 
-    # -- life cycle --------------------------------------------------------------
-
-    def start(self) -> None:
-        """Start and wait for the ready line (raise with the log if none comes)."""
-        self._child = ChildProcess(self.args, "sim", env=self._env, stdin_pipe=True)
-        try:  # stdin held: the simulator exits when we go, even unsignalled
-            self.fields = self._child.start(self._ready_timeout)
+    def start(self, timeout: float | None = None) -> dict[str, str]:
+        """Start and wait for the ready line (`SimProcessError` with the log if
+        none comes within `timeout`, default `ready_timeout`)."""
+        try:
+            return super().start(self.ready_timeout if timeout is None else timeout)
         except NotReadyError as error:
             raise SimProcessError(str(error)) from None
-
-    def stop(self) -> int | None:
-        """SIGTERM (then SIGKILL) by PID; return the exit code."""
-        return None if self._child is None else self._child.stop()
-
-    @property
-    def pid(self) -> int:
-        assert self._child is not None, "not started"
-        return self._child.pid
-
-    @property
-    def returncode(self) -> int | None:
-        return None if self._child is None else self._child.returncode
-
-    def wait(self, timeout: float) -> int:
-        """The exit code, once the simulator has exited."""
-        assert self._child is not None, "not started"
-        return self._child.wait(timeout)
-
-    def log_text(self) -> str:
-        """What the simulator wrote to stderr so far."""
-        return "" if self._child is None else self._child.stderr_text()
 
     def __enter__(self) -> Self:
         self.start()
         return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        traceback: TracebackType | None,
-    ) -> None:
-        if self._child is not None:
-            self._child.close()
 
     # -- where it listens ----------------------------------------------------------
 

@@ -5,11 +5,18 @@ Defaults follow TwinCAT: masters are `Device <n> (EtherCAT)` with the system
 NetId's 5th byte set to n + 1 (facts section 6, catio's dumps); slaves are
 `Term <k> (<type>)` numbered across the whole project and get EtherCAT
 addresses 1001, 1002, ... in bus order (real rack dumps).
+
+A slave is played from its type's YAML, or, when the chain gives it another
+revision, from the YAML of that revision among `revisions` (other revisions
+of the types, matched by product code and revision): a terminal's symbols
+are those of the revision it reports. Without such a file the type's YAML
+is played and a note says so (`SimTarget.notes`). A type without YAML that
+gives its `product_code` is played with its identity only.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Final
@@ -19,13 +26,18 @@ from fastcs_ethercat.ads.netid import AmsNetId
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.sim.chain import Chain, MasterSpec, SlaveSpec
 from fastcs_ethercat.terminals.files import terminal_file_name
-from fastcs_ethercat.terminals.loader import load_terminals
-from fastcs_ethercat.terminals.model import TerminalType
+from fastcs_ethercat.terminals.load_cache import read_terminal_file_cached
+from fastcs_ethercat.terminals.loader import load_terminals, terminal_paths
+from fastcs_ethercat.terminals.model import Identity, TerminalType
 from fastcs_ethercat.terminals.registry import TerminalRegistry
 from fastcs_ethercat.terminals.symbols import ExpandedSymbol, expanded_symbols
 
 FIRST_SLAVE_ADDRESS: Final = 1001
 """EtherCAT address of the first slave of a master (TwinCAT's default)."""
+BECKHOFF_VENDOR_ID: Final = 2
+
+Revisions = Mapping[tuple[int, int], TerminalType]
+"""Terminal YAML of other revisions by (product code, revision number)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -42,6 +54,8 @@ class ResolvedSlave:
     """The YAML description with the chain's PDO group / factor applied."""
     spec: SlaveSpec
     initial_state: AlState
+    note: str = ""
+    """Why its process data is not that of the revision it reports ("": it is)."""
 
     def active_symbols(self) -> list[ExpandedSymbol]:
         """The symbols of the active PDO configuration, per channel.
@@ -88,7 +102,9 @@ class ResolvedMaster:
 
 
 def resolve_chain(
-    chain: Chain, terminals: TerminalRegistry | Path | str
+    chain: Chain,
+    terminals: TerminalRegistry | Path | str,
+    revisions: Revisions | None = None,
 ) -> tuple[AmsNetId, tuple[ResolvedMaster, ...]]:
     """The system NetId and every master with its slaves, checked against the
     terminal YAML (unknown types, PDO groups and factors are UserErrors)."""
@@ -103,7 +119,11 @@ def resolve_chain(
     for m, master in enumerate(chain.masters):
         slaves: list[ResolvedSlave] = []
         for s, slave in enumerate(master.slaves):
-            slaves.append(_resolve_slave(chain, registry, (m, s), slave, term_number))
+            slaves.append(
+                _resolve_slave(
+                    chain, registry, revisions or {}, (m, s), slave, term_number
+                )
+            )
             term_number += 1
         masters.append(
             ResolvedMaster(
@@ -128,24 +148,21 @@ def _master_net_id(master: MasterSpec, system: AmsNetId, index: int) -> AmsNetId
 def _resolve_slave(
     chain: Chain,
     registry: TerminalRegistry,
+    revisions: Revisions,
     where: tuple[int, int],
     spec: SlaveSpec,
     term_number: int,
 ) -> ResolvedSlave:
     m, s = where
     loc = ("masters", m, "slaves", s)
-    if spec.type not in registry:
-        known = ", ".join(registry.type_names()) or "none"
-        raise chain.error(
-            (*loc, "type"), f"unknown terminal type {spec.type!r} (known: {known})"
-        )
-    terminal = registry.get(spec.type).terminal
+    name = spec.name or f"Term {term_number} ({spec.type})"
+    terminal, note = _terminal_of(chain, registry, revisions, loc, spec)
     terminal = _with_pdo_group(chain, loc, spec, terminal)
     terminal = _with_oversampling(chain, loc, spec, terminal)
     identity = terminal.identity
     return ResolvedSlave(
         position=s,
-        name=spec.name or f"Term {term_number} ({spec.type})",
+        name=name,
         type_name=spec.type,
         address=FIRST_SLAVE_ADDRESS + s,
         identity=SlaveIdentity(
@@ -159,7 +176,83 @@ def _resolve_slave(
         terminal=terminal,
         spec=spec,
         initial_state=AlState[spec.al_state],
+        note=f"{name}: {note}" if note else "",
     )
+
+
+def _terminal_of(
+    chain: Chain,
+    registry: TerminalRegistry,
+    revisions: Revisions,
+    loc: tuple[object, ...],
+    spec: SlaveSpec,
+) -> tuple[TerminalType, str]:
+    """The description a slave is played from, and a note when it is not
+    that of the revision the slave reports."""
+    if spec.type not in registry:
+        if spec.product_code is not None:
+            return _bare_terminal(spec), ""
+        known = ", ".join(registry.type_names()) or "none"
+        raise chain.error(
+            (*loc, "type"),
+            f"unknown terminal type {spec.type!r} (known: {known}; a type "
+            "without YAML needs its product_code)",
+        )
+    terminal = registry.get(spec.type).terminal
+    identity = terminal.identity
+    for key in ("vendor_id", "product_code"):
+        given = getattr(spec, key)
+        if given is not None and given != getattr(identity, key):
+            raise chain.error(
+                (*loc, key),
+                f"{spec.type}'s YAML has {key} 0x{getattr(identity, key):08x}, "
+                f"not 0x{given:08x}",
+            )
+    if spec.revision is None or spec.revision == identity.revision_number:
+        return terminal, ""
+    other = revisions.get((identity.product_code, spec.revision))
+    if other is not None:
+        return other, ""
+    return terminal, (
+        f"no YAML of {spec.type} revision 0x{spec.revision:08x} (sim --revisions "
+        f"DIR); its process data is that of revision "
+        f"0x{identity.revision_number:08x}"
+    )
+
+
+def _bare_terminal(spec: SlaveSpec) -> TerminalType:
+    """A type with no YAML: its identity, no process data, no CoE."""
+    assert spec.product_code is not None
+    return TerminalType(
+        identity=Identity(
+            vendor_id=BECKHOFF_VENDOR_ID if spec.vendor_id is None else spec.vendor_id,
+            product_code=spec.product_code,
+            revision_number=spec.revision or 0,
+        ),
+        description=f"{spec.type} (no terminal YAML: identity only)",
+        symbol_nodes=[],
+        coe_objects=[],
+    )
+
+
+def load_revisions(
+    sources: Iterable[Path | str],
+) -> dict[tuple[int, int], TerminalType]:
+    """Terminal YAML of other revisions (files, directories, globs), by
+    (product code, revision number); a type may have any number of files."""
+    found: dict[tuple[int, int], TerminalType] = {}
+    for path in terminal_paths(sources):
+        for type_name, terminal in read_terminal_file_cached(path).items():
+            identity = terminal.identity
+            key = (identity.product_code, identity.revision_number)
+            if key in found:
+                raise UserError(
+                    f"{type_name} revision 0x{key[1]:08x} is described twice",
+                    path=path,
+                    where=type_name,
+                )
+            found[key] = terminal
+    return found
 
 
 def _with_pdo_group(
@@ -251,6 +344,8 @@ __all__ = [
     "FIRST_SLAVE_ADDRESS",
     "ResolvedMaster",
     "ResolvedSlave",
+    "Revisions",
+    "load_revisions",
     "registry_for",
     "resolve_chain",
 ]

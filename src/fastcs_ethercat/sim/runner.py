@@ -19,14 +19,11 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from types import TracebackType
 from typing import Any, Final, Protocol, Self
 
 from fastcs_ethercat.ads.constants import ADS_TCP_PORT, ADS_UDP_PORT
 from fastcs_ethercat.ads.netid import AmsNetId
-from fastcs_ethercat.process import parse_ready_line as parse_any_ready_line
 from fastcs_ethercat.process import ready_line as ready_line_of
-from fastcs_ethercat.process import ready_prefix
 from fastcs_ethercat.sim.control import (
     ControlHttpServer,
     ControllableTarget,
@@ -38,7 +35,6 @@ from fastcs_ethercat.sim.udp import UdpResponder
 
 log = logging.getLogger(__name__)
 
-READY_PREFIX: Final = ready_prefix("sim")
 CONTROL_HOST: Final = "127.0.0.1"
 """The control API can force values and break things: loopback only, always."""
 DEFAULT_CYCLE_SECONDS: Final = 0.010
@@ -88,14 +84,6 @@ def ready_line(endpoints: Endpoints) -> str:
     return ready_line_of(
         "sim", net_id=endpoints.net_id, tcp=tcp, udp=udp, control=control
     )
-
-
-def parse_ready_line(line: str) -> dict[str, str]:
-    """The key=value fields of a ready line (for `SimProcess`)."""
-    fields = parse_any_ready_line(line, "sim")
-    if fields is None:
-        raise ValueError(f"not a ready line: {line!r}")
-    return fields
 
 
 class Simulator:
@@ -282,12 +270,7 @@ class SimulatorThread:
         self.start()
         return self
 
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        traceback: TracebackType | None,
-    ) -> None:
+    def __exit__(self, *exc_info: object) -> None:
         self.stop()
 
     def _run(self) -> None:

@@ -26,7 +26,12 @@ from fastcs_ethercat.ads.frames import AmsPacket
 from fastcs_ethercat.ads.netid import AmsAddress, AmsNetId
 from fastcs_ethercat.sim.chain import Chain, SystemSpec, load_chain
 from fastcs_ethercat.sim.device import SimDevice
-from fastcs_ethercat.sim.resolve import ResolvedSlave, registry_for, resolve_chain
+from fastcs_ethercat.sim.resolve import (
+    ResolvedSlave,
+    Revisions,
+    registry_for,
+    resolve_chain,
+)
 from fastcs_ethercat.sim.services import (
     DEVICE_PORT_NAME,
     IO_SERVER_NAME,
@@ -58,11 +63,14 @@ class SimTarget:
         chain: Chain,
         terminals: TerminalRegistry | Path | str,
         seed: int = 0,
+        revisions: Revisions | None = None,
     ) -> None:
         self.chain = chain
         self.seed = seed
         system: SystemSpec = chain.system
-        self.system_net_id, masters = resolve_chain(chain, terminals)
+        self.system_net_id, masters = resolve_chain(chain, terminals, revisions)
+        self.notes = [s.note for m in masters for s in m.slaves if s.note]
+        """Slaves played from the YAML of another revision than they report."""
         self.cycle_s = system.task_cycle_ms / 1000.0
         self.run = RunState()
         self.devices = [
@@ -89,10 +97,12 @@ class SimTarget:
         chain: Chain | Path | str,
         terminals_dir: TerminalRegistry | Path | str | None = None,
         seed: int = 0,
+        revisions: Revisions | None = None,
     ) -> SimTarget:
         """Build from a chain (or a chain file) and the terminal YAML directory
         (default: `terminals/` in the current directory, else next to the
-        chain file's directory, as in the repository)."""
+        chain file's directory, as in the repository), with YAML of other
+        revisions (`load_revisions`)."""
         if not isinstance(chain, Chain):
             chain = load_chain(chain)
         if terminals_dir is None:
@@ -105,7 +115,7 @@ class SimTarget:
                 {slave.type for master in chain.masters for slave in master.slaves},
             )
         )
-        return cls(chain, terminals, seed)
+        return cls(chain, terminals, seed, revisions)
 
     def _check_signals(self) -> None:
         """A `signals` name that drives nothing is a typo: say where."""

@@ -8,6 +8,7 @@ save and after generation.
 from __future__ import annotations
 
 from collections import Counter
+from collections.abc import Hashable, Sequence
 from dataclasses import dataclass
 
 from fastcs_ethercat.terminals.model import SymbolNode, TerminalType
@@ -36,14 +37,25 @@ def terminal_problems(terminal: TerminalType) -> list[Problem]:
     return found
 
 
+def _duplicates(
+    where: Loc, field: str, keys: Sequence[Hashable], message: str
+) -> list[Problem]:
+    """One problem at each item of the list at `where` whose `field` value
+    (`keys`, in list order) another item shares; `message` formats the value."""
+    counts = Counter(keys)
+    return [
+        Problem((*where, at, field), message.format(key))
+        for at, key in enumerate(keys)
+        if counts[key] > 1
+    ]
+
+
 def _group_problems(terminal: TerminalType) -> list[Problem]:
-    found: list[Problem] = []
     groups = terminal.pdo_groups
-    names = Counter(g.name for g in groups)
+    names = [g.name for g in groups]
+    found = _duplicates(("pdo_groups",), "name", names, "duplicate group {!r}")
     for position, group in enumerate(groups):
         loc: Loc = ("pdo_groups", position)
-        if names[group.name] > 1:
-            found.append(Problem((*loc, "name"), f"duplicate group {group.name!r}"))
         for at, index in enumerate(group.symbol_indices):
             if index >= len(terminal.symbol_nodes):
                 found.append(
@@ -128,9 +140,13 @@ def _symbol_problems(
 
 
 def _member_problems(loc: Loc, node: SymbolNode, instances: int) -> list[Problem]:
-    found: list[Problem] = []
+    found = _duplicates(
+        (*loc, "members"),
+        "fastcs_name",
+        [m.fastcs_name for m in node.members],
+        "duplicate member fastcs_name {!r}",
+    )
     end = 0
-    names = Counter(m.fastcs_name for m in node.members)
     for at, member in enumerate(node.members):
         mloc: Loc = (*loc, "members", at)
         if member.bit_offset < end:
@@ -151,13 +167,6 @@ def _member_problems(loc: Loc, node: SymbolNode, instances: int) -> list[Problem
                     (*mloc, "coe"),
                     f"want {instances} CoE addresses (one per channel), "
                     f"got {len(member.coe)}",
-                )
-            )
-        if names[member.fastcs_name] > 1:
-            found.append(
-                Problem(
-                    (*mloc, "fastcs_name"),
-                    f"duplicate member fastcs_name {member.fastcs_name!r}",
                 )
             )
     return found
@@ -189,38 +198,31 @@ def _unique_symbol_names(terminal: TerminalType) -> list[Problem]:
 
 
 def _coe_problems(terminal: TerminalType) -> list[Problem]:
-    found: list[Problem] = []
-    indices = Counter(o.index for o in terminal.coe_objects)
-    fastcs = Counter(o.fastcs_name for o in terminal.coe_objects)
-    for position, obj in enumerate(terminal.coe_objects):
-        loc: Loc = ("coe_objects", position)
-        if indices[obj.index] > 1:
-            found.append(
-                Problem((*loc, "index"), f"duplicate CoE index 0x{obj.index:04x}")
-            )
-        if fastcs[obj.fastcs_name] > 1:
-            found.append(
-                Problem(
-                    (*loc, "fastcs_name"), f"duplicate fastcs_name {obj.fastcs_name!r}"
-                )
-            )
-        subindices = Counter(s.subindex for s in obj.sub_items)
-        sub_names = Counter(s.fastcs_name for s in obj.sub_items)
-        for at, sub in enumerate(obj.sub_items):
-            sloc: Loc = (*loc, "sub_items", at)
-            if subindices[sub.subindex] > 1:
-                found.append(
-                    Problem(
-                        (*sloc, "subindex"), f"duplicate sub-index 0x{sub.subindex:02x}"
-                    )
-                )
-            if sub_names[sub.fastcs_name] > 1:
-                found.append(
-                    Problem(
-                        (*sloc, "fastcs_name"),
-                        f"duplicate fastcs_name {sub.fastcs_name!r}",
-                    )
-                )
+    objects = terminal.coe_objects
+    where: Loc = ("coe_objects",)
+    found = _duplicates(
+        where, "index", [o.index for o in objects], "duplicate CoE index 0x{:04x}"
+    )
+    found += _duplicates(
+        where,
+        "fastcs_name",
+        [o.fastcs_name for o in objects],
+        "duplicate fastcs_name {!r}",
+    )
+    for position, obj in enumerate(objects):
+        subs: Loc = (*where, position, "sub_items")
+        found += _duplicates(
+            subs,
+            "subindex",
+            [s.subindex for s in obj.sub_items],
+            "duplicate sub-index 0x{:02x}",
+        )
+        found += _duplicates(
+            subs,
+            "fastcs_name",
+            [s.fastcs_name for s in obj.sub_items],
+            "duplicate fastcs_name {!r}",
+        )
     return found
 
 

@@ -2,9 +2,12 @@
 
 A live terminal reports vendor, product code and revision. Beckhoff's
 revision number holds the revision in its high 16 bits and the type variant
-(`-0010` -> 10) in its low 16 bits, so a description of an older revision of
-the same variant is the nearest fit when the exact revision is missing; a
-different variant never fits (EL3356-0010 is not an EL3356-0000).
+(`-0010` -> 10) in its low 16 bits. A rack runs many revisions older and
+newer than the one YAML per type, so when the exact revision has no YAML the
+nearest revision of the same product code stands in (the IOC then serves
+only the symbols the live table has, by name): first within the same
+variant, the older on a tie, then any variant of that product code. Only a
+product code with no YAML at all has no match.
 """
 
 from __future__ import annotations
@@ -34,8 +37,13 @@ class RegistryMatch:
     terminal: TerminalType
     path: Path
     exact: bool
-    """False when only an older revision of the same variant was found."""
+    """False when only another revision of the product code was found."""
     requested_revision: int
+
+    @property
+    def revision(self) -> int:
+        """The revision the chosen YAML describes."""
+        return self.terminal.identity.revision_number
 
 
 def variant_of(revision: int) -> int:
@@ -44,22 +52,27 @@ def variant_of(revision: int) -> int:
 
 
 class TerminalRegistry:
-    """Terminal types by name and identity; duplicates are user errors."""
+    """Terminal types by name and identity; duplicates are user errors.
+
+    A type may be described at several revisions (files of its own, e.g. a
+    site's YAML of an older revision beside the shipped one): `lookup`
+    chooses among all of them; `get` gives the first loaded of the name.
+    """
 
     def __init__(self, items: Iterable[RegisteredTerminal]) -> None:
         self._by_name: dict[str, RegisteredTerminal] = {}
+        self._items: list[RegisteredTerminal] = []
         by_identity: dict[tuple[int, int, int], RegisteredTerminal] = {}
         for item in items:
-            earlier = self._by_name.get(item.type_name)
-            if earlier is not None:
-                raise UserError(
-                    f"terminal type {item.type_name} is also defined in {earlier.path}",
-                    path=item.path,
-                    where=item.type_name,
-                )
             identity = item.terminal.identity
             key = (identity.vendor_id, identity.product_code, identity.revision_number)
             clash = by_identity.get(key)
+            if clash is not None and clash.type_name == item.type_name:
+                raise UserError(
+                    f"terminal type {item.type_name} is also defined in {clash.path}",
+                    path=item.path,
+                    where=item.type_name,
+                )
             if clash is not None:
                 raise UserError(
                     f"{item.type_name} has the same identity (product code "
@@ -68,14 +81,25 @@ class TerminalRegistry:
                     path=item.path,
                     where=item.type_name,
                 )
-            self._by_name[item.type_name] = item
+            earlier = self._by_name.get(item.type_name)
+            if earlier is not None and (
+                earlier.terminal.identity.product_code != identity.product_code
+            ):
+                raise UserError(
+                    f"terminal type {item.type_name} is also defined in "
+                    f"{earlier.path} with another product code",
+                    path=item.path,
+                    where=item.type_name,
+                )
+            self._by_name.setdefault(item.type_name, item)
+            self._items.append(item)
             by_identity[key] = item
 
     def __len__(self) -> int:
-        return len(self._by_name)
+        return len(self._items)
 
     def __iter__(self) -> Iterator[RegisteredTerminal]:
-        return iter(self._by_name.values())
+        return iter(self._items)
 
     def __contains__(self, type_name: object) -> bool:
         return type_name in self._by_name
@@ -90,27 +114,27 @@ class TerminalRegistry:
     def lookup(
         self, product_code: int, revision: int, vendor_id: int | None = None
     ) -> RegistryMatch | None:
-        """Exact identity, else the newest older revision of the same variant."""
+        """Exact identity, else the nearest revision of the product code."""
         candidates = [
             item
-            for item in self._by_name.values()
+            for item in self._items
             if item.terminal.identity.product_code == product_code
             and (vendor_id is None or item.terminal.identity.vendor_id == vendor_id)
         ]
-        for item in candidates:
-            if item.terminal.identity.revision_number == revision:
-                return self._match(item, revision, exact=True)
-        older = [
-            item
-            for item in candidates
-            if item.terminal.identity.revision_number < revision
-            and variant_of(item.terminal.identity.revision_number)
-            == variant_of(revision)
-        ]
-        if not older:
+        if not candidates:
             return None
-        best = max(older, key=lambda item: item.terminal.identity.revision_number)
-        return self._match(best, revision, exact=False)
+
+        def distance(item: RegisteredTerminal) -> tuple[int, int, int]:
+            described = item.terminal.identity.revision_number
+            return (
+                int(variant_of(described) != variant_of(revision)),
+                abs((described >> 16) - (revision >> 16)),
+                int(described > revision),
+            )
+
+        best = min(candidates, key=distance)
+        exact = best.terminal.identity.revision_number == revision
+        return self._match(best, revision, exact=exact)
 
     @staticmethod
     def _match(

@@ -1,29 +1,36 @@
 """The root controller: start-up (discovery, the tree), the link, statistics.
 
 FastCS calls `initialise()` before it builds the transports: the root finds
-its plan there (`PlanSource`: discovery on the live target by default; a
-cached or configured chain can stand in, the seam for booting without the
-PLC), names every PV at once and builds one `MasterController` per master
-below it. Once the transports serve, `start()` hands over to the
-`Reconnection` component (pollers, supervisor, CoE reads); FastCS's
-`disconnect()` stops it all. Statistics come from the masters' pollers and
-the supervisor, read once a second; nothing here raises out of its scan.
+its plan there (`PlanSource`, `ioc.boot`: the live target, or a configured or
+cached chain while the PLC does not answer), names every PV at once and
+builds one `MasterController` per master below it. Every plan discovered on
+the live target (at start and after every resync) is kept as this target's
+chain (`ioc.chains`), for the next start without the PLC. Once the
+transports serve, `start()` hands over to the `Reconnection` component
+(pollers, supervisor, CoE reads); a tree built from a chain starts with
+every target PV INVALID/COMM and the supervisor looking for the target.
+FastCS's `disconnect()` stops it all. Statistics come from the masters'
+pollers and the supervisor, read once a second; nothing here raises out of
+its scan.
 """
 
 from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Awaitable, Callable
+from collections.abc import Callable, Collection, Sequence
 from dataclasses import dataclass
 from typing import Any, Final
 
 from fastcs.attributes import AttrR
 from fastcs.controllers import Controller
-from fastcs.datatypes import Bool, Int, String
+from fastcs.datatypes import Int, String
 from fastcs.methods import scan
 
+from fastcs_ethercat import __version__
 from fastcs_ethercat.ioc.alarms import Status
+from fastcs_ethercat.ioc.boot import PlanSource
+from fastcs_ethercat.ioc.chains import remember
 from fastcs_ethercat.ioc.config import IocConfig
 from fastcs_ethercat.ioc.connection import Connection
 from fastcs_ethercat.ioc.controllers.master import MasterController
@@ -36,8 +43,8 @@ from fastcs_ethercat.ioc.controllers.tree import (
     pv_requests,
     slave_path,
 )
-from fastcs_ethercat.ioc.datatypes import ExactFloat
-from fastcs_ethercat.ioc.health import Health
+from fastcs_ethercat.ioc.datatypes import AlarmBool, ExactFloat, alarm_enum
+from fastcs_ethercat.ioc.health import COMM, Health
 from fastcs_ethercat.ioc.naming import (
     MAX_PV_LENGTH,
     PvNames,
@@ -46,12 +53,35 @@ from fastcs_ethercat.ioc.naming import (
     plan_pv_names,
 )
 from fastcs_ethercat.ioc.plan import MasterPlan, SystemPlan, TerminalPlan
+from fastcs_ethercat.ioc.process_stats import ProcessStats
 from fastcs_ethercat.ioc.reconnect import Reconnection
+from fastcs_ethercat.ioc.supervisor import LinkState
+from fastcs_ethercat.logs import log_at_most
 from fastcs_ethercat.terminals.registry import TerminalRegistry
 
 logger = logging.getLogger(__name__)
 
 STATS_PERIOD_S: Final = 1.0
+WARNINGS_SHOWN: Final = 15
+"""Start-up warnings logged before one line says how many more there are."""
+NAMES_SHOWN: Final = 3
+"""Terminals a folded warning names before it counts the rest."""
+PROCESS_LEAVES: Final = (
+    "Version",
+    "StartTime",
+    "Uptime",
+    "CpuLoad",
+    "MemoryUsed",
+    "PollOverruns",
+)
+"""The IOC process's health (what devIocStats gives a C IOC)."""
+LINK_SEVERITIES: Final = {
+    LinkState.CONNECTED: 0,
+    LinkState.RESYNCING: 1,
+    LinkState.DISCONNECTED: 2,
+    LinkState.STOPPED: 2,
+}
+"""`ConnectionState` as an alarm: a resync is MINOR, no target MAJOR."""
 ROOT_LEAVES: Final = (
     "Connected",
     "Target",
@@ -73,10 +103,8 @@ ROOT_LEAVES: Final = (
     "LastRecovery",
     "ChainChanges",
     "InvalidPvs",
+    *PROCESS_LEAVES,
 )
-
-PlanSource = Callable[[], Awaitable[tuple[SystemPlan, Connection]]]
-"""What the root serves and how it reaches the target: discovery by default."""
 
 
 @dataclass
@@ -119,6 +147,7 @@ class RootController(Controller):
         self.pv_count = 0
         self.unserved = 0
         self.rates = RateTracker()
+        self.process = ProcessStats()
         self._plan: SystemPlan | None = None
         self._names: PvNames | None = None
         self._reconnection: Reconnection | None = None
@@ -146,15 +175,23 @@ class RootController(Controller):
         if self._plan is not None:
             return
         plan, connection = await self.plan_source()
+        started = time.monotonic()
         self.build(plan, connection)
-        for warning in self.warnings():
-            logger.warning("%s", warning)
         logger.info(
-            "%d master(s), %d terminals, %d PVs",
-            len(plan.masters),
-            sum(len(m.terminals) for m in plan.masters),
+            "%d PVs planned in %.1f s; creating their records",
             self.pv_count,
+            time.monotonic() - started,
         )
+        log_at_most(
+            logger,
+            logging.WARNING,
+            fold_by_terminal(self.warnings(), self._slave_names()),
+            WARNINGS_SHOWN,
+            "warnings (every one: `ioc --list-pvs`, or at debug level)",
+        )
+
+    def _slave_names(self) -> set[str]:
+        return {t.slave.name for m in self.plan.masters for t in m.terminals}
 
     def build(self, plan: SystemPlan, connection: Connection) -> None:
         """The attributes of the root and every controller below, for `plan`."""
@@ -165,7 +202,7 @@ class RootController(Controller):
         )
         for shortening in names.shortened:  # thousands with every CoE object
             logger.debug("PV name shortened: %s", shortening)
-        self.attrs = _root_attributes(plan, config.target)
+        self.attrs = _root_attributes(plan, config.target, self.process)
         for leaf, attr in self.attrs.items():
             self.add_attribute(names.leaves[PvRequest((), leaf)], attr)
         self.masters = build_masters(
@@ -181,6 +218,8 @@ class RootController(Controller):
     ) -> tuple[list[AttrR[Any, Any]], list[AttrR[Any, Any]]]:
         """Every master polls what `plan` (a discovery) has of its points;
         (attributes gone from the target, attributes served)."""
+        if not plan.offline_from:
+            remember(plan, self.config.target)
         by_name = {m.name: m for m in plan.masters}
         gone: list[AttrR[Any, Any]] = []
         served: list[AttrR[Any, Any]] = []
@@ -263,9 +302,24 @@ class RootController(Controller):
         of SDO uploads (mailbox round trips on a real bus) would hold up the
         start. Until read, each is INVALID (UDF).
         """
+        plan = self.plan
+        logger.info(
+            "serving %d PVs of %d terminals on %d master(s)%s",
+            self.pv_count,
+            sum(len(m.terminals) for m in plan.masters),
+            len(plan.masters),
+            " (INVALID until the target answers)" if plan.offline_from else "",
+        )
         self.health.publisher.start()
         coe = [a for t in self.terminals() for a in t.coe_attributes]
         self.health.mark_invalid(coe, COE_READ, Status.UDF, "not read yet")
+        if plan.offline_from:
+            self.health.mark_invalid(
+                self.target_attributes(),
+                COMM,
+                Status.COMM,
+                f"target not reached since start (served from {plan.offline_from})",
+            )
         self.reconnection.start()
 
     async def disconnect(self) -> None:
@@ -277,8 +331,8 @@ class RootController(Controller):
         """Publish a change of the link at once, not at the next scan."""
         try:
             a = self.attrs
-            await post(a["Connected"], state == "CONNECTED")
-            await post(a["ConnectionState"], state)
+            await self.health.post(a["Connected"], state == "CONNECTED")
+            await self.health.post(a["ConnectionState"], state)
             if error:
                 await post(a["LastError"], error[:200])
         except Exception:  # never stop the caller (the supervisor)
@@ -310,7 +364,7 @@ class RootController(Controller):
         a = self.attrs
         await post(a["PvCount"], self.pv_count)
         await post(a["Unserved"], self.unserved)
-        await post(
+        await self.health.post(
             a["Connected"],
             connected and bool(stats) and all(s.cycles > 0 for s in stats),
         )
@@ -323,18 +377,61 @@ class RootController(Controller):
         errors_total = sum(s.errors + s.item_errors for s in stats)
         await post(a["PollErrors"], min(errors_total, 2**31 - 1))
         await post(a["LastError"], last_error[:200])
-        await post(a["ConnectionState"], str(link.state))
+        await self.health.post(a["ConnectionState"], str(link.state))
         await post(a["Reconnects"], min(link.reconnects + link.resyncs, 2**31 - 1))
         await post(a["LastRecovery"], link.last_recovery_s)
         await post(a["ChainChanges"], self.reconnection.chain_changes[:200])
         await post(a["InvalidPvs"], min(self.health.invalid_count, 2**31 - 1))
-        await post(a["SymbolVersion"], self.reconnection.live.symbol_version)
+        live = self.reconnection.live
+        await post(a["SymbolVersion"], live.symbol_version)
+        await post(a["DeviceName"], live.device_name)
+        await post(a["DeviceVersion"], live.device_version)
+        sample = self.process.sample()
+        await post(a["Uptime"], sample.uptime_s)
+        await post(a["CpuLoad"], sample.cpu_percent)
+        await post(a["MemoryUsed"], sample.memory_mib)
+        await post(a["PollOverruns"], min(sum(s.overruns for s in stats), 2**31 - 1))
 
 
-def _root_attributes(plan: SystemPlan, target: str) -> dict[str, AttrR[Any, Any]]:
+def fold_by_terminal(warnings: Sequence[str], terminals: Collection[str]) -> list[str]:
+    """One line for what several terminals say alike (`Term 5 (EL3104): X`
+    and `Term 29 (EL3104): X` -> `2 terminals (Term 5 (EL3104), Term 29
+    (EL3104)): X`): a rack repeats its types, and so would its warnings."""
+    by_text: dict[str, list[str]] = {}
+    order: list[tuple[str, str]] = []
+    for warning in warnings:
+        name, colon, text = warning.partition(": ")
+        if not colon or name not in terminals:
+            order.append(("", warning))
+            continue
+        if text not in by_text:
+            by_text[text] = []
+            order.append((text, ""))
+        by_text[text].append(name)
+    folded: list[str] = []
+    for text, warning in order:
+        if not text:
+            folded.append(warning)
+            continue
+        names = by_text[text]
+        if len(names) == 1:
+            folded.append(f"{names[0]}: {text}")
+            continue
+        shown = ", ".join(names[:NAMES_SHOWN])
+        if len(names) > NAMES_SHOWN:
+            shown += f" and {len(names) - NAMES_SHOWN} more"
+        folded.append(f"{len(names)} terminals ({shown}): {text}")
+    return folded
+
+
+def _root_attributes(
+    plan: SystemPlan, target: str, process: ProcessStats
+) -> dict[str, AttrR[Any, Any]]:
     terminals = sum(len(master.terminals) for master in plan.masters)
     return {
-        "Connected": AttrR(Bool(), description="Polling the target"),
+        "Connected": AttrR(
+            AlarmBool(severities=(2, 0)), description="Polling the target"
+        ),
         "Target": _fixed(String(), target, "ADS host[:port]"),
         "NetId": _fixed(String(), plan.net_id, "AMS NetId of the target"),
         "DeviceName": _fixed(String(), plan.device_name, "TwinCAT device name"),
@@ -355,13 +452,31 @@ def _root_attributes(plan: SystemPlan, target: str) -> dict[str, AttrR[Any, Any]
         ),
         "PollErrors": AttrR(Int(), description="Failed poll reads"),
         "LastError": AttrR(String(), description="Last ADS error"),
-        "ConnectionState": AttrR(String(), description="Link to the target"),
+        "ConnectionState": AttrR(
+            alarm_enum(LinkState, LINK_SEVERITIES),
+            initial_value=LinkState.DISCONNECTED,
+            description="Link to the target",
+        ),
         "Reconnects": AttrR(Int(), description="Reconnects and resyncs"),
         "LastRecovery": AttrR(
             ExactFloat(units="s", prec=2), description="Last outage, loss to poll"
         ),
         "ChainChanges": AttrR(String(), description="Chain change at reconnect"),
         "InvalidPvs": AttrR(Int(), description="Attributes in INVALID alarm"),
+        "Version": _fixed(String(), __version__, "fastcs-ethercat version"),
+        "StartTime": _fixed(String(), process.start_text(), "IOC start (local time)"),
+        "Uptime": AttrR(
+            ExactFloat(units="s", prec=0), description="Seconds since IOC start"
+        ),
+        "CpuLoad": AttrR(
+            ExactFloat(units="%", prec=1), description="IOC CPU, % of one core"
+        ),
+        "MemoryUsed": AttrR(
+            ExactFloat(units="MiB", prec=1), description="IOC resident memory"
+        ),
+        "PollOverruns": AttrR(
+            Int(), description="Poll cycles longer than their period"
+        ),
     }
 
 

@@ -1,0 +1,157 @@
+"""Archiver Appliance and autosave lists, checked against the PV list: from a
+tree built in process, and from `ioc --list-pvs --format ...` with the PLC
+(the simulator) and without it (`--chain`)."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+from pathlib import Path
+
+import pytest
+
+from fastcs_ethercat.ioc.boot import chain_plan
+from fastcs_ethercat.ioc.clients import ClientPool
+from fastcs_ethercat.ioc.config import IocConfig
+from fastcs_ethercat.ioc.connection import Connection
+from fastcs_ethercat.ioc.controllers.root import RootController
+from fastcs_ethercat.ioc.controllers.tree import PvEntry
+from fastcs_ethercat.ioc.plan import SystemPlan
+from fastcs_ethercat.ioc.pvlists import (
+    archiver_items,
+    autosave_names,
+    autosave_text,
+    write_pv_lists,
+)
+from fastcs_ethercat.sim.chain import load_chain
+from fastcs_ethercat.sim.process import SimProcess
+from fastcs_ethercat.terminals.loader import load_terminals
+from tests.conftest import REPO_ROOT
+from tests.ioc_support import (
+    ioc_env,
+    list_pvs_text,
+    new_token,
+    terminals_with_coe,
+    write_ioc_config,
+)
+
+DEMO_CHAIN = REPO_ROOT / "ioc" / "demo-chain.yaml"
+POLL_RATE_HZ = 10.0
+
+
+@pytest.fixture(scope="module")
+def terminals(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The shipped YAML with EL3104's `AI Settings` CoE object selected."""
+    return terminals_with_coe(tmp_path_factory.mktemp("pvlists") / "terminals")
+
+
+@pytest.fixture(scope="module")
+def entries(terminals: Path) -> list[PvEntry]:
+    config = IocConfig(prefix="LISTS", target="127.0.0.1:1", terminal_dirs=(terminals,))
+    registry = load_terminals([terminals])
+
+    async def go() -> list[PvEntry]:
+        plan = await chain_plan(load_chain(DEMO_CHAIN), registry, config, "test")
+        pool = ClientPool("127.0.0.1", 1)
+        root = RootController(config, lambda: _never(), registry)
+        root.build(plan, Connection(pool, plan.net_id))
+        await pool.close()
+        return root.pvs()
+
+    return asyncio.run(go())
+
+
+async def _never() -> tuple[SystemPlan, Connection]:
+    raise AssertionError("the plan is given")
+
+
+def test_every_readable_pv_is_archived_once(entries: list[PvEntry]) -> None:
+    items = archiver_items(entries, POLL_RATE_HZ)
+
+    assert [i["pv"] for i in items] == [e.name for e in entries if "r" in e.access]
+    assert {e.source for e in entries if "r" not in e.access} == {"command"}
+
+
+def test_plc_values_are_monitored_at_the_poll_period(entries: list[PvEntry]) -> None:
+    by_name = {i["pv"]: i for i in archiver_items(entries, POLL_RATE_HZ)}
+    polled = [e for e in entries if "r" in e.access and e.source not in ("ioc",)]
+    coe = [e for e in polled if e.source.startswith("CoE:")]
+    symbols = [e for e in polled if not e.source.startswith("CoE:")]
+
+    assert coe and symbols
+    assert {(by_name[e.name]["samplingmethod"], by_name[e.name]["samplingperiod"])
+            for e in symbols} == {("MONITOR", "0.1")}  # fmt: skip
+    assert {by_name[e.name]["samplingmethod"] for e in coe} == {"MONITOR"}
+
+
+def test_slow_diagnostics_are_scanned_and_states_monitored(
+    entries: list[PvEntry],
+) -> None:
+    by_name = {i["pv"]: i for i in archiver_items(entries, POLL_RATE_HZ)}
+    diagnostics = [e for e in entries if e.source == "ioc" and "r" in e.access]
+    methods = {(e.datatype, by_name[e.name]["samplingmethod"]) for e in diagnostics}
+
+    assert ("Int", "SCAN") in methods
+    assert {m for t, m in methods if t in ("Bool", "Enum", "String")} == {"MONITOR"}
+
+
+def test_autosave_holds_every_setpoint_and_coe_parameter(
+    entries: list[PvEntry],
+) -> None:
+    names = autosave_names(entries)
+    setpoints = [e for e in entries if e.access == "rw"]
+
+    assert names == [e.name for e in setpoints]  # every rw PV is one or the other
+    assert any(e.source.startswith("CoE:") for e in setpoints)
+    assert any(e.source.startswith("Term ") for e in setpoints)
+    text = autosave_text(entries, "LISTS")
+    assert text.splitlines()[2:] == names
+    assert all(line.startswith("#") for line in text.splitlines()[:2])
+
+
+def test_the_lists_are_written_into_a_folder(
+    entries: list[PvEntry], tmp_path: Path
+) -> None:
+    archiver, autosave = write_pv_lists(
+        tmp_path / "lists", entries, "LISTS", POLL_RATE_HZ
+    )
+
+    assert json.loads(archiver.read_text()) == archiver_items(entries, POLL_RATE_HZ)
+    assert autosave.read_text() == autosave_text(entries, "LISTS")
+
+
+def _check_against_the_pv_list(text: str, archiver: str, autosave: str) -> None:
+    rows = [line.split(" ", 3) for line in text.splitlines()]
+    readable = [name for name, access, _, _ in rows if "r" in access]
+    settable = [
+        name
+        for name, access, _, source in rows
+        if access == "rw" and source not in ("ioc", "command")
+    ]
+    assert [item["pv"] for item in json.loads(archiver)] == readable
+    assert [line for line in autosave.splitlines() if not line.startswith("#")] == (
+        settable
+    )
+
+
+@pytest.mark.e2e
+def test_the_lists_with_and_without_the_plc_match_the_pv_list(
+    terminals: Path, tmp_path: Path
+) -> None:
+    env = {**ioc_env(new_token()), "XDG_CACHE_HOME": str(tmp_path / "cache")}
+    with SimProcess(DEMO_CHAIN, terminals=terminals, env=env) as sim:
+        config = write_ioc_config(
+            tmp_path, "LISTS", sim.pyads_ip, sim.net_id, terminal_dirs=[str(terminals)]
+        )
+        live = [
+            list_pvs_text(config, env, "--format", fmt)
+            for fmt in ("text", "archiver", "autosave")
+        ]
+    offline = [
+        list_pvs_text(config, env, "--chain", str(DEMO_CHAIN), "--format", fmt)
+        for fmt in ("text", "archiver", "autosave")
+    ]
+
+    _check_against_the_pv_list(*live)
+    _check_against_the_pv_list(*offline)
+    assert offline == live  # the same chain, with the PLC or without it
