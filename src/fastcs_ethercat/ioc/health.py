@@ -176,6 +176,11 @@ class Health:
         self._setpoint[id(attribute)] = Reason(status, message)
         self._show_setpoint_soon(attribute)
 
+    def setpoint_status(self, attribute: Attribute[Any, Any]) -> Status | None:
+        """The status of the setpoint's own problem, None without one."""
+        own = self._setpoint.get(id(attribute))
+        return None if own is None else own.status
+
     def setpoint_fine(self, attribute: Attribute[Any, Any]) -> None:
         """The setpoint's own problem is gone: its PVs show the attribute's
         other reasons, if any."""
