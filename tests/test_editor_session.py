@@ -64,7 +64,8 @@ def test_search_and_add_from_the_catalog(
 def test_the_preview_names_the_pvs_as_the_ioc_does() -> None:
     el3104 = read_terminal_file(TERMINALS / "EL3104.yaml")["EL3104"]
     pvs = [p.pv for p in preview_pvs(el3104, "EL3104", "DEMO:ETH1:RIO21:MOD22")]
-    assert len(pvs) == 36 and "DEMO:ETH1:RIO21:MOD22:CH1:Error" in pvs
+    assert len(pvs) == 40 and "DEMO:ETH1:RIO21:MOD22:CH1:Error" in pvs
+    assert "DEMO:ETH1:RIO21:MOD22:CH1:ValueRaw" in pvs  # volts, and counts
     longest = "BL45P-MO-IOC-01-LONGER:ETH1:RIO1:MOD112"  # the longest prefix
     long = preview_pvs(el3104, "EL3104", longest)
     assert all(p.longest <= 60 for p in long) and not any(p.shortened for p in long)

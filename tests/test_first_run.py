@@ -97,4 +97,4 @@ def test_fresh_clone_command_1_then_the_printed_line_reads_a_value(
     name, _, value = read.stdout.strip().partition(" ")
     assert str(clone) in pasted  # the clone's own caget
     assert name == f"{prefix}:ETH1:RIO1:MOD5:CH1:Value", read.stdout + read.stderr
-    assert -32768 <= int(value.strip()) <= 32767
+    assert -10.001 <= float(value.strip()) <= 10  # volts

@@ -117,7 +117,7 @@ def test_demo_prints_lines_that_read_numbers_and_text_from_a_bare_shell(
 
     pv = f"{prefix}:ETH1:RIO1:MOD5:CH1:Value"
     caget_out, pvget_out, text_out = outputs
-    assert caget_out.split()[0] == pv and -32768 <= int(caget_out.split()[1]) <= 32767
+    assert caget_out.split()[0] == pv and -10.001 <= float(caget_out.split()[1]) <= 10
     assert pv in pvget_out
     assert text_out.split() == [f"{prefix}:ETH1:RIO1:MOD5:AlStateText", "OP"]
     assert pv in names and len(names) > 400

@@ -24,6 +24,7 @@ from fastcs_ethercat.ads.ethercat import (
     FrameCounters,
     SlaveState,
 )
+from fastcs_ethercat.ioc.alarms import NO_ALARM, Severity, Status, value_alarm
 from fastcs_ethercat.ioc.attributes import CoeIO
 from fastcs_ethercat.ioc.config import IocConfig, load_ioc_config
 from fastcs_ethercat.ioc.connection import Connection
@@ -35,7 +36,7 @@ from fastcs_ethercat.ioc.controllers.terminal import (
     TerminalController,
     al_state_text,
 )
-from fastcs_ethercat.ioc.datatypes import ExactFloat, IntegralFloat
+from fastcs_ethercat.ioc.datatypes import ExactFloat, IntegralFloat, severity_table
 from fastcs_ethercat.ioc.handles import PointHandles
 from fastcs_ethercat.ioc.plan import (
     CoePoint,
@@ -46,6 +47,7 @@ from fastcs_ethercat.ioc.plan import (
     SystemPlan,
     TerminalPlan,
 )
+from fastcs_ethercat.terminals.meaning import Scaling
 
 MASTER = "Device 1 (EtherCAT)"
 COUPLER = "Term 1 (EK1100)"
@@ -68,12 +70,13 @@ def _point(symbol: str, type_name: str, **extra: Any) -> Point:
     )
 
 
+VOLTS = Scaling(10 / 32767, 0.0, "V")
 CHANNEL_1 = {"channel": 1}
 ANALOG_POINTS = [
     _point(
         f"{ANALOG}.AI Standard Channel 1.Value",
         "INT",
-        units="V",
+        scaling=Scaling(unit="V"),
         entry_name="Value",
         **CHANNEL_1,
     ),
@@ -103,6 +106,9 @@ ANALOG_POINTS = [
     _point(f"{ANALOG}.Samples", "INT", kind=PointKind.ARRAY, length=10),
     _point(f"{ANALOG}.AO Output", "SINT", writable=True, byte_size=1),
     _point(f"{ANALOG}.Strange", "NO_SUCH_TYPE"),
+    _point(f"{ANALOG}.AI Volts", "INT", scaling=VOLTS, description="EL3104 AI Volts"),
+    _point(f"{ANALOG}.AO Volts", "INT", scaling=VOLTS, writable=True),
+    _point(f"{ANALOG}.Status.Error", "BIT", kind=PointKind.BIT, severity=2),
 ]
 COE = [CoePoint("presentation", 0x8000, 0x02, "DT0800EN03", 3, True,
                 enum_texts=((0, "Signed"), (1, "Unsigned")), name="Presentation",
@@ -427,3 +433,70 @@ def test_aliases_pin_segments_and_unknown_ones_are_reported() -> None:
     assert "TEST:ECAT:RIO1:PIEZO:CH1:Pos1" in names
     assert "TEST:ECAT:RIO1:PIEZO:Mode_RBV" in names
     assert root.names.unused_aliases == ("Device 9 (EtherCAT)",)
+
+
+def _by_name(root: RootController) -> dict[str, Any]:
+    """Every attribute of the analog terminal by its PV segment."""
+    return {name: attr for name, attr in _analog(root).attributes.items()}
+
+
+async def test_a_scaled_value_is_served_in_its_unit_with_its_raw_count() -> None:
+    recorder = Recorder()
+    root = _root(recorder)
+    master, terminal = root.masters[0], _analog(root)
+    served = {e.name: e for e in root.pvs()}
+    attrs = _by_name(root)
+    volts_in, raw_in = attrs["AIVolts"], attrs["AIVoltsRaw"]
+    volts_out, raw_out = attrs["AOVolts"], attrs["AOVoltsRaw"]
+    point_in = next(p for p in ANALOG_POINTS if p.symbol.endswith("AI Volts"))
+    batches: asyncio.Queue[Any] = asyncio.Queue()
+    batches.put_nowait(([(point_in, 16384)], 1.0))
+    posting = asyncio.create_task(master._post_batches(batches))
+    await asyncio.sleep(0.05)
+    posting.cancel()
+    assert isinstance(volts_out, AttrRW)
+    point_out = next(p for p in ANALOG_POINTS if p.symbol.endswith("AO Volts"))
+    master.handles = PointHandles(problems={point_out.symbol: "gone"})
+    with pytest.raises(LookupError, match="gone"):  # the setpoint says so
+        await volts_out.put(2.5, sync_setpoint=False)
+    refused = master.health.setpoint_alarm(volts_out)
+    master.handles = PointHandles(writes={point_out.symbol: 0x103})
+    await volts_out.put(2.5, sync_setpoint=False)
+
+    assert served["TEST:ETH1:RIO1:MOD2:AIVolts"].datatype == "ExactFloat"
+    assert served["TEST:ETH1:RIO1:MOD2:AIVoltsRaw"].access == "r"
+    assert served["TEST:ETH1:RIO1:MOD2:AOVoltsRaw"].access == "r"
+    assert volts_in.datatype.units == "V" and volts_in.datatype.prec == 4
+    assert (raw_in.get(), volts_in.get()) == (16384, pytest.approx(5.0002, abs=1e-4))
+    assert terminal.by_key[point_in.key] is raw_in  # the poller feeds the raw
+    assert not isinstance(raw_out, AttrRW)
+    assert recorder.writes[-1] == (0xF005, 0x103, (8192).to_bytes(2, "little"))
+    assert (refused.severity, refused.status) == (Severity.INVALID, Status.WRITE)
+    assert master.health.setpoint_alarm(volts_out) == NO_ALARM  # written
+    assert master.shown_by_key[point_out.key] is volts_out
+    assert volts_in.description == "EL3104 AI Volts"
+    assert raw_in.description == "EL3104 AI Volts raw"
+    with pytest.raises(ValueError):
+        await volts_out.put(10.5)  # beyond the INT's 10 V
+
+
+async def test_status_bits_and_diagnostics_carry_their_severity() -> None:
+    root = _root(Recorder())
+    master, analog = root.masters[0], _analog(root)
+    states = (
+        SlaveState.of(AlState.OP),
+        SlaveState.of(AlState.SAFEOP, link=0x04),
+        SlaveState.of(AlState.OP),
+    )
+    await master.apply_status(MasterStatus(8, 3, FrameCounters(), states, {}))
+
+    error = _by_name(root)["StatusError"]
+    assert severity_table(error.datatype) is not None
+    assert severity_table(error.datatype)(True) == 2
+    assert value_alarm(analog.diag["AlState"]).severity is Severity.MAJOR
+    assert value_alarm(analog.diag["LinkOk"]).severity is Severity.MAJOR
+    assert master.attrs["State"].get() is AlStateView.OP
+    assert value_alarm(master.attrs["State"]).severity is Severity.NO_ALARM
+    assert value_alarm(master.attrs["Online"]) == NO_ALARM
+    assert value_alarm(root.attrs["Connected"]).severity is Severity.MAJOR  # False
+    assert value_alarm(root.attrs["ConnectionState"]).severity is Severity.MAJOR

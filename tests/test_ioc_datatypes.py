@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pytest
 from fastcs.datatypes import Bool, Enum, Float, Int, String, Waveform
@@ -9,15 +11,26 @@ from lxml import etree
 
 from fastcs_ethercat.esi.dictionary import parse_data_type
 from fastcs_ethercat.esi.model import EsiDataType
+from fastcs_ethercat.ioc.attributes import (
+    coe_datatype,
+    engineering_value,
+    from_engineering,
+)
 from fastcs_ethercat.ioc.datatypes import (
     EXACT_DOUBLE_INTEGER,
+    AlarmBool,
+    AlarmInt,
     ExactFloat,
     IntegralFloat,
     UnsupportedTypeError,
     description,
+    engineering,
     enum_class,
     to_fastcs,
+    type_label,
 )
+from fastcs_ethercat.ioc.plan import CoePoint, Point, PointKind
+from fastcs_ethercat.terminals.meaning import Scaling
 from tests.conftest import ESI_SUBSET as ESI
 
 
@@ -158,3 +171,56 @@ def test_enum_labels_and_descriptions_fit_their_record_fields() -> None:
     assert description("  a \n b ") == "a b"
     assert description(None) is None
     assert all(len(text.encode()) <= 40 for text in (description("°" * 30) or "", ""))
+
+
+def test_engineering_units_are_a_float_with_egu_prec_and_range() -> None:
+    volts = engineering("INT", Scaling(10 / 32767, 0.0, "V"))
+    loop = engineering("INT", Scaling(16 / 32767, 4.0, "mA"))
+    unit_only = engineering("DINT", Scaling(unit="N"))
+    real = engineering("REAL", Scaling(2.0, 1.0, "bar", 3))
+
+    assert volts == ExactFloat(units="V", prec=4, min=-32768 * 10 / 32767, max=10.0)
+    assert volts.validate(32767 * (10 / 32767) + 0.0) == 10.0  # the top count fits
+    assert isinstance(loop, ExactFloat)
+    assert (loop.min, loop.max) == (pytest.approx(4 - 16 * 32768 / 32767), 20.0)
+    assert unit_only == Int(units="N", min=-(2**31), max=2**31 - 1)
+    assert real == ExactFloat(units="bar", prec=3)
+    with pytest.raises(UnsupportedTypeError, match="no engineering units"):
+        engineering("STRING(10)", Scaling(2.0))
+
+
+def test_pv_lists_name_alarm_states_by_their_fastcs_type() -> None:
+    assert type_label(AlarmBool(severities=(0, 2))) == "Bool"
+    assert type_label(AlarmInt(set_severity=1)) == "Int"
+    assert type_label(ExactFloat()) == "ExactFloat"
+
+
+def test_coe_numbers_show_their_esi_unit() -> None:
+    def coe(type_name: str, units: str) -> Any:
+        return coe_datatype(CoePoint("x", 0x8000, 1, type_name, 16, False, units=units))
+
+    assert coe("INT", "degC") == Int(units="degC", min=-32768, max=32767)
+    assert coe("REAL", "mV/V").units == "mV/V"
+    assert coe("STRING(8)", "s") == String(length=8)
+    assert coe("UINT", "") == Int(min=0, max=65535)
+
+
+def test_values_written_in_engineering_units_become_counts() -> None:
+    def point(type_name: str, kind: PointKind = PointKind.SCALAR) -> Point:
+        return Point("k", "s", "a", type_name, kind, 0xF020, 0, 2, length=3,
+                     writable=True, scaling=Scaling(10 / 32767, 0.0, "V"))  # fmt: skip
+
+    assert from_engineering(point("INT"), 2.5) == 8192  # 8191.75 -> nearest
+    assert from_engineering(point("INT", PointKind.ARRAY), [0.0, 5.0, -10.0]) == [
+        0,
+        16384,
+        -32767,
+    ]
+    assert from_engineering(point("REAL"), 1.0) == pytest.approx(3276.7)
+    unscaled = Point("k", "s", "a", "INT", PointKind.SCALAR, 0xF020, 0, 2)
+    assert from_engineering(unscaled, 7) == 7
+    # what the setpoint then shows: the count written, in volts
+    assert engineering_value(point("INT"), 8192) == pytest.approx(2.50008, abs=1e-5)
+    shown = engineering_value(point("INT", PointKind.ARRAY), [0, 16384, -32767])
+    assert shown.tolist() == pytest.approx([0.0, 5.00015, -10.0], abs=1e-5)
+    assert engineering_value(unscaled, 7) == 7

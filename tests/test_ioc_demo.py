@@ -13,6 +13,8 @@ to look behind the IOC, pyads against the simulator and its control API.
 from __future__ import annotations
 
 import asyncio
+import queue
+import re
 import subprocess
 import sys
 import time
@@ -25,12 +27,14 @@ import numpy as np
 import pytest
 import yaml
 
+import fastcs_ethercat
 from fastcs_ethercat.ioc.clients import ClientPool
 from fastcs_ethercat.ioc.coe import SlaveCoe
 from fastcs_ethercat.ioc.plan import CoePoint
 from fastcs_ethercat.sim.process import SimProcess
 from tests.conftest import REPO_ROOT, TERMINALS_DIR
 from tests.ioc_support import (
+    BIN,
     IOC_COMMAND,
     START_TIMEOUT,
     IocProcess,
@@ -71,12 +75,17 @@ class Demo:
     screens: Path
     figures: dict[str, float]
 
-    def by_source(self, source: str, access: str | None = None) -> str:
-        """The PV (the writable one if asked) of a symbol or CoE item."""
+    def by_source(
+        self, source: str, access: str | None = None, datatype: str | None = None
+    ) -> str:
+        """The PV (the writable one, the one of a type, if asked) of a symbol
+        or CoE item (a scaled value has two: `ExactFloat` and its raw `Int`)."""
         names = [
             entry.name
             for entry in self.pvs.values()
-            if entry.source == source and (access is None or entry.access == access)
+            if entry.source == source
+            and (access is None or entry.access == access)
+            and (datatype is None or entry.datatype == datatype)
         ]
         assert len(names) == 1, f"{source}: {names}"
         return names[0]
@@ -199,13 +208,13 @@ def test_compact_and_standard_pdos_of_el3104(demo: Demo) -> None:
     assert not any(name.endswith(":Underrange") for name in compact)
     assert demo.ioc.pv(f"{STANDARD}:CH1:Value") in standard
     assert demo.ioc.pv(f"{STANDARD}:CH1:Underrange") in standard
-    assert all(-32768 <= int(value) <= 32767 for value in values.values())
+    assert all(-10.001 <= float(value) <= 10.0 for value in values.values())  # V
     assert len(values) == 2
 
 
 def test_values_follow_the_simulator(demo: Demo) -> None:
     symbol = "Term 22 (EL3104).AI Standard Channel 1.Value"
-    pv = demo.by_source(symbol)
+    pv = demo.by_source(symbol, datatype="Int")  # the raw count
     sine = demo.ioc.pv(f"{COMPACT}:CH1:Value")
     demo.sim.set_symbol(symbol, -4321)
     first = caget(demo.ioc, sine)[sine]
@@ -311,13 +320,14 @@ def test_pvget_pvi_and_screens(demo: Demo) -> None:
 def test_faults_show_and_polling_recovers(demo: Demo) -> None:
     p = demo.ioc.pv
     symbol = "Term 22 (EL3104).AI Standard Channel 2.Value"
-    pv = demo.by_source(symbol)
+    pv = demo.by_source(symbol, datatype="Int")
     state = p("ETH1:RIO1:MOD6:AlState")
     try:
         demo.sim.add_fault("error", code=1793, group=0xF080)  # sum reads fail
         demo.sim.add_fault("slave_state", state="SAFEOP", name="Term 6 (EL2024)")
         errors = wait_for(lambda: _number(demo, "PollErrors") > 0, 10)
         safeop = wait_for(lambda: caget(demo.ioc, "-S", state)[state] == "SAFEOP", 10)
+        major = caget(demo.ioc, "-a", state)[state].split()[-2:]
     finally:
         demo.sim.clear_faults()
     demo.sim.set_symbol(symbol, 777)
@@ -325,7 +335,9 @@ def test_faults_show_and_polling_recovers(demo: Demo) -> None:
     back_in_op = wait_for(lambda: caget(demo.ioc, "-S", state)[state] == "OP", 10)
 
     assert errors and safeop
+    assert major == ["STATE", "MAJOR"]  # not in OP: MAJOR
     assert recovered and back_in_op
+    assert caget(demo.ioc, "-a", state)[state].split()[-1] == "OP"  # no alarm
 
 
 def _number(demo: Demo, name: str) -> float:
@@ -427,3 +439,151 @@ def test_coe_values_are_read_after_start_and_valid(demo: Demo) -> None:
 
     assert len(names) >= 3
     assert wait_for(lambda: set(severities()) == {0}, 20), severities()
+
+
+# -- what the values mean: units, severities, descriptions, IOC health ----------
+
+STANDARD_CHANNEL = "Term 22 (EL3104).AI Standard Channel {}"
+
+
+def test_el3104_value_is_served_in_volts_with_its_raw_count_beside(
+    demo: Demo,
+) -> None:
+    symbol = STANDARD_CHANNEL.format(3) + ".Value"
+    volts = demo.by_source(symbol, datatype="ExactFloat")
+    raw = demo.by_source(symbol, datatype="Int")
+    demo.sim.set_symbol(symbol, 16384)
+    followed = wait_for(lambda: caget(demo.ioc, raw).get(raw) == "16384", 10)
+    shown = caget(demo.ioc, "-a", volts)[volts].split()  # date, time, value
+    control = demo.ioc.tool("caget", "-d", "DBR_CTRL_DOUBLE", volts)
+    desc = caget(demo.ioc, "-S", volts + ".DESC")[volts + ".DESC"]
+    with demo.ioc.p4p_context() as context:
+        value: Any = context.get(volts, timeout=10)
+    display = value.raw.display
+
+    assert followed
+    assert float(shown[2]) == pytest.approx(16384 * 10 / 32767, abs=1e-4)
+    assert re.search(r"^\s*Units:\s+V$", control, re.MULTILINE), control
+    assert re.search(r"^\s*Precision:\s+4$", control, re.MULTILINE), control
+    assert (display.units, display.precision) == ("V", 4)
+    assert desc == "EL3104 AI Standard Ch3 Value"
+
+
+def test_caput_in_volts_writes_counts(demo: Demo) -> None:
+    symbol = "Term 15 (EL4134).AO Output Channel 2"
+    pv = demo.by_source(symbol, access="rw")
+    demo.ioc.tool("caput", pv, "2.5")
+
+    in_image = wait_for(lambda: demo.sim.get_symbol(symbol) == 8192, 10)
+    readback = wait_for(lambda: caget(demo.ioc, pv + "_RBV").get(pv + "_RBV"), 10)
+
+    setpoint = caget(demo.ioc, "-a", pv)[pv].split()  # date, time, value
+
+    assert in_image  # 2.5 V / (10 V / 32767) = 8191.75 -> 8192 counts
+    assert float(readback) == pytest.approx(8192 * 10 / 32767, abs=1e-4)
+    assert len(setpoint) == 3  # the count written, in volts, with no alarm
+    assert float(setpoint[2]) == pytest.approx(8192 * 10 / 32767, abs=1e-4)
+
+
+_CAMONITOR_LINE = re.compile(
+    r"^(?P<name>\S+)\s+(?P<stamp>\d{4}-\d\d-\d\d \d\d:\d\d:\d\d\.\d+)\s+(?P<rest>.*)$"
+)
+
+
+def _monitor(demo: Demo, pv: str) -> IocProcess:
+    """camonitor of `pv`, its lines in a queue (stop it by its PID alone: it
+    carries the IOC's token)."""
+    camonitor = [str(BIN / "camonitor"), pv]
+    return start_ioc(camonitor, demo.ioc.prefix, demo.ioc.env, demo.ioc.token)
+
+
+def _next_event(lines: queue.Queue[str], value: str, timeout: float) -> re.Match[str]:
+    """The first monitor event showing `value`."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        try:
+            match = _CAMONITOR_LINE.match(lines.get(timeout=0.2).strip())
+        except queue.Empty:
+            continue
+        if match and match["rest"].split()[0] == value:
+            return match
+    raise AssertionError(f"no event with {value!r} in {timeout} s")
+
+
+def test_error_bit_turns_its_status_pv_major_with_the_value(demo: Demo) -> None:
+    """The severity rides on the value's own update: the first event that
+    shows the Error bit set is already MAJOR, stamped with the poll cycle
+    that read it."""
+    error = STANDARD_CHANNEL.format(4) + ".Status.Error"
+    overrange = STANDARD_CHANNEL.format(4) + ".Status.Overrange"
+    error_pv, overrange_pv = demo.by_source(error), demo.by_source(overrange)
+    monitor = _monitor(demo, error_pv)
+    lines = monitor.lines
+    try:
+        _next_event(lines, "False", 10)
+        put_at = time.time()
+        demo.sim.set_symbol(error, 1)
+        demo.sim.set_symbol(overrange, 1)
+        raised = _next_event(lines, "True", 10)
+        while_set = caget(demo.ioc, "-a", error_pv, overrange_pv)
+        demo.sim.set_symbol(error, 0)
+        demo.sim.set_symbol(overrange, 0)
+        cleared = _next_event(lines, "False", 10)
+    finally:
+        stop_pid(monitor.process.pid)
+        monitor.process.wait(5)
+    after = caget(demo.ioc, "-a", error_pv, overrange_pv)
+    stamp = time.mktime(time.strptime(raised["stamp"][:19], "%Y-%m-%d %H:%M:%S"))
+    stamp += float("0" + raised["stamp"][19:])
+    print(f"\nError bit set -> MAJOR event stamped {1000 * (stamp - put_at):.0f} ms "
+          f"after the PUT (poll period 50 ms)")  # fmt: skip
+
+    assert raised["rest"].split() == ["True", "STATE", "MAJOR"]
+    assert stamp >= put_at - 0.01  # the read that saw it, not an older one
+    assert while_set[error_pv].split()[-3:] == ["True", "STATE", "MAJOR"]
+    assert while_set[overrange_pv].split()[-3:] == ["True", "STATE", "MINOR"]
+    assert cleared["rest"].split() == ["False"]  # back to NO_ALARM with the value
+    assert after[error_pv].split()[-1] == "False"
+    assert after[overrange_pv].split()[-1] == "False"
+
+
+def test_diagnostics_are_enums_and_alarms(demo: Demo) -> None:
+    p = demo.ioc.pv
+    names = [p("ETH1:State"), p("ETH1:RIO21:MOD22:AlState"), p("Connected")]
+    names += [p("ETH1:Online"), p("ETH1:RIO21:MOD22:LinkOk"), p("ConnectionState")]
+    values = wait_for(
+        lambda: (
+            (v := caget(demo.ioc, "-a", *names))
+            and v[p("Connected")].split()[-1] == "True"
+            and v
+        ),
+        10,
+    )
+
+    assert values[p("ETH1:State")].split()[-1] == "OP"  # an mbbi with strings
+    assert values[p("ETH1:RIO21:MOD22:AlState")].split()[-1] == "OP"
+    assert values[p("ConnectionState")].split()[-1] == "CONNECTED"
+    assert all(values[n].split()[-1] in ("OP", "True", "CONNECTED") for n in names)
+
+
+def test_ioc_health_pvs(demo: Demo) -> None:
+    p = demo.ioc.pv
+    texts = caget(demo.ioc, "-S", p("Version"), p("StartTime"))
+    numbers = [p("Uptime"), p("CpuLoad"), p("MemoryUsed"), p("PollOverruns")]
+    first = caget(demo.ioc, *numbers)
+    later = wait_for(
+        lambda: (
+            (v := caget(demo.ioc, *numbers))
+            and float(v[p("Uptime")]) > float(first[p("Uptime")])
+            and v
+        ),
+        10,
+    )
+    started = time.mktime(time.strptime(texts[p("StartTime")], "%Y-%m-%d %H:%M:%S"))
+
+    assert texts[p("Version")] == fastcs_ethercat.__version__
+    assert time.time() - 3600 < started <= time.time()
+    assert later and float(later[p("Uptime")]) > 0
+    assert 0 <= float(later[p("CpuLoad")]) < 400
+    assert 20 < float(later[p("MemoryUsed")]) < 4096
+    assert int(later[p("PollOverruns")]) >= 0

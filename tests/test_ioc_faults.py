@@ -46,7 +46,7 @@ from tests.ioc_support import (
 DEMO_CHAIN = REPO_ROOT / "ioc" / "demo-chain.yaml"
 INVALID = 3
 SINE = "ETH1:RIO1:MOD5:CH1:Value"  # Term 5 (EL3104): moves all the time
-STEADY = "ETH1:RIO21:MOD22:CH1:Value"  # Term 22 (EL3104): set by tests
+STEADY = "ETH1:RIO21:MOD22:CH1:ValueRaw"  # Term 22 (EL3104): set by tests
 STEADY_SYMBOL = "Term 22 (EL3104).AI Standard Channel 1.Value"
 OUTPUT = "Term 24 (EP4374-0002).AO Outputs Channel 3"
 NEIGHBOUR = "ETH1:RIO21:MOD22:CH2:Value"  # same terminal, other symbol

@@ -283,3 +283,36 @@ def test_helpers() -> None:
     assert group_symbols([entry]) == {"Term 1 (EL1014)": [entry]}
     unknown = SlaveInfo(1001, "Term 1 (X)", 2, 0x1234, 1)
     assert resolve_terminal("M", unknown, [], {}, load_terminals([])).points == []
+
+
+@pytest.mark.e2e
+def test_points_carry_units_severities_and_descriptions(plan: SystemPlan) -> None:
+    """What the ESI names and DScale say, on the live points."""
+    compact = {p.attribute: p for p in terminal(plan, 1, "Term 2 (EL3104)").points}
+    standard = {p.attribute: p for p in terminal(plan, 2, "Term 8 (EL3104)").points}
+    samples = [
+        p for p in terminal(plan, 1, "Term 5 (EL3702)").points
+        if p.kind is PointKind.ARRAY
+    ]  # fmt: skip
+    generic = {p.attribute: p for p in terminal(plan, 1, "Term 3 (EL3602)").points}
+    value = standard["ai_standard_channel_2_value"]
+    error = standard["ai_standard_channel_2_status_error"]
+    overrange = standard["ai_standard_channel_2_status_overrange"]
+    toggle = standard["ai_standard_channel_2_status_txpdo_toggle"]
+
+    one_entry = compact["ai_compact_channel_1"].scaling  # a one-entry PDO too
+    assert one_entry is not None and one_entry.unit == "V"
+    assert value.scaling is not None and value.scaling.converts
+    assert value.scaling.scale == pytest.approx(10 / 32767)
+    assert value.description == "EL3104 AI Standard Ch2 Value"
+    assert (error.severity, overrange.severity, toggle.severity) == (2, 1, 0)
+    assert error.scaling is None
+    assert error.description == "EL3104 AI Standard Ch2 Error"
+    assert standard["wc_state"].severity == 2
+    assert standard["input_toggle"].severity == 0
+    assert all(p.scaling is not None and p.scaling.unit == "V" for p in samples)
+    assert generic["ai_inputs_channel_1_value"].scaling is None  # no YAML: raw
+    assert generic["ai_inputs_channel_1_error"].severity == 2  # names still count
+    assert (
+        generic["ai_inputs_channel_1_value"].description == "EL3602 AI Inputs Ch1 Value"
+    )

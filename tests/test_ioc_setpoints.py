@@ -130,6 +130,26 @@ async def test_a_setpoint_takes_the_plcs_value_from_a_poll_cycles_batch() -> Non
     assert output.shown() == ((42, 0, ""), (42, 0, ""))
 
 
+async def test_a_resync_does_not_turn_a_refused_write_into_waiting() -> None:
+    """A put refused while the IOC resyncs, then the resync's `follow` before
+    the put's answer reaches the client (seen in the online-change test): the
+    setpoint keeps INVALID/WRITE (the client must see the put fail, not UDF),
+    until the PLC's value arrives, which it then shows."""
+    output, health = Output(), Health()
+    setpoints = Setpoints(health)
+    setpoints.follow([output.attribute])
+    await health.post(output.attribute, 5)
+    await setpoints.failed(output.attribute, 9, "not written: target away")
+    setpoints.follow([output.attribute])  # the resync ends
+    await _settled()
+    answered = output.shown()[1]
+    await health.post(output.attribute, 6)  # the first readback after it
+    await _settled()
+
+    assert answered == (9, 3, "WRITE: not written: target away")
+    assert output.shown()[1] == (6, 0, "")
+
+
 async def test_an_unknown_outcome_waits_for_the_readback() -> None:
     output, health = Output(), Health()
     setpoints = Setpoints(health)

@@ -37,13 +37,13 @@ pytestmark = pytest.mark.e2e
 
 DEMO_CHAIN = REPO_ROOT / "ioc" / "demo-chain.yaml"
 INVALID = 3
-ANALOG = "ETH1:RIO1:MOD15:CH2:AnalogOutput"
-ANALOG_SYMBOL = "Term 15 (EL4134).AO Output Channel 2"
+ANALOG = "ETH1:RIO21:MOD24:CH3:AnalogOutput"
+ANALOG_SYMBOL = "Term 24 (EP4374-0002).AO Outputs Channel 3"
 OUTPUTS = {
-    # PV -> symbol: analog words, digital bits, bits of one control word
+    # PV -> symbol: analog words served in counts (an EL4134's are volts),
+    # digital bits, bits of one control word
     ANALOG: ANALOG_SYMBOL,
-    "ETH1:RIO1:MOD15:CH3:AnalogOutput": "Term 15 (EL4134).AO Output Channel 3",
-    "ETH1:RIO21:MOD24:CH3:AnalogOutput": "Term 24 (EP4374-0002).AO Outputs Channel 3",
+    "ETH1:RIO21:MOD24:CH4:AnalogOutput": "Term 24 (EP4374-0002).AO Outputs Channel 4",
     "ETH1:RIO1:MOD6:CH2:Output": "Term 6 (EL2024).Channel 2",
     "ETH1:RIO1:MOD7:CH3:Output": "Term 7 (EL2124).Channel 3",
     "ETH1:RIO1:MOD8:CH1:SetOutput": (
@@ -59,8 +59,8 @@ OUTPUTS = {
 WATCHED_OUTPUTS = (
     # written by nobody: any change is a write that went astray
     "Term 15 (EL4134).AO Output Channel 1",
+    "Term 15 (EL4134).AO Output Channel 2",
     "Term 15 (EL4134).AO Output Channel 4",
-    "Term 24 (EP4374-0002).AO Outputs Channel 4",
     "Term 6 (EL2024).Channel 1",
     "Term 8 (EL1502).CNT Outputs Channel 1.Control.Inhibit counter",
     "Term 8 (EL1502).CNT Outputs Channel 1.Control.Enable output functions",
@@ -69,11 +69,11 @@ WATCHED_OUTPUTS = (
 STANDARD = "Term 22 (EL3104).AI Standard Channel"
 COMPACT = "Term 5 (EL3104).AI Compact Channel"
 PINNED = {
-    # PV -> (symbol, the value the simulator is made to hold)
-    "ETH1:RIO21:MOD22:CH1:Value": (f"{STANDARD} 1.Value", 1111),
-    "ETH1:RIO21:MOD22:CH2:Value": (f"{STANDARD} 2.Value", -2222),
-    "ETH1:RIO1:MOD5:CH1:Value": (f"{COMPACT} 1", 3333),
-    "ETH1:RIO1:MOD5:CH4:Value": (f"{COMPACT} 4", -4444),
+    # PV -> (symbol, the value the simulator is made to hold): raw counts
+    "ETH1:RIO21:MOD22:CH1:ValueRaw": (f"{STANDARD} 1.Value", 1111),
+    "ETH1:RIO21:MOD22:CH2:ValueRaw": (f"{STANDARD} 2.Value", -2222),
+    "ETH1:RIO1:MOD5:CH1:ValueRaw": (f"{COMPACT} 1", 3333),
+    "ETH1:RIO1:MOD5:CH4:ValueRaw": (f"{COMPACT} 4", -4444),
 }
 SLAVE_COUNT = "ETH1:InputsSlaveCount"  # a runtime input: always 24 here
 
@@ -280,7 +280,7 @@ def test_ca_and_pva_setpoints_agree_after_puts_on_either(rig: Rig) -> None:
     rig.sim.add_fault("error", code=1793, group=0xF005)  # writes by handle refused
     rig.ioc.tool("caput", "-c", rig.pv(name), "3456")
     refused_ca_put = _both(rig, name, (3456, INVALID, "3456", *refused))
-    with pytest.raises(Exception, match="AO Output Channel 2 not written"):
+    with pytest.raises(Exception, match="AO Outputs Channel 3 not written"):
         rig.context.put(rig.pv(name), 4567, timeout=5)
     refused_pva_put = _both(rig, name, (4567, INVALID, "4567", *refused))
     rig.sim.clear_faults()
@@ -446,7 +446,7 @@ def test_a_device_port_without_symbol_version_resyncs_on_invalid_handles(
     chain["system"]["symbol_version_on_device_port"] = False
     chain_file = tmp_path / "chain.yaml"
     chain_file.write_text(yaml.safe_dump(chain), encoding="utf-8")
-    name, symbol = "ETH1:RIO21:MOD22:CH1:Value", f"{STANDARD} 1.Value"
+    name, symbol = "ETH1:RIO21:MOD22:CH1:ValueRaw", f"{STANDARD} 1.Value"
     served = served_ioc("OLD", chain_file, lambda s, p: _config(tmp_path, s, p))
     with served as (sim, ioc):
         rig = Rig(sim, ioc, None)  # type: ignore[arg-type]

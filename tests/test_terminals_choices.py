@@ -15,6 +15,8 @@ from fastcs_ethercat.terminals.selection import (
     select_coe,
     select_symbols,
     set_oversampling,
+    set_severity,
+    set_units,
 )
 
 from .test_terminals_support import (
@@ -126,3 +128,106 @@ def test_a_sub_index_choice_survives_regenerate(tmp_path: Path) -> None:
     assert terminal.identity.revision_number == 0x00110000
     obj = next(o for o in terminal.coe_objects if o.index == 0x8020)
     assert obj.selected and [s.subindex for s in obj.sub_items if s.selected] == [0x11]
+
+
+STANDARD = "AI Standard Channel {channel}"
+
+
+def test_units_set_show_and_reset_from_the_cli(el3104: Path) -> None:
+    shown = run_cli("terminals", "units", str(el3104), STANDARD)
+    set_ = run_cli("terminals", "units", str(el3104), "ai_standard_channel_{channel}",
+                   "--unit", "mV", "--scale", "0.30518")  # fmt: skip
+    text = el3104.read_text(encoding="utf-8")
+    precision = run_cli("terminals", "units", str(el3104), STANDARD,
+                        "--member", "value", "--precision", "2")  # fmt: skip
+    terminal = read_terminal_file(el3104)["EL3104"]
+    value = terminal.symbol_nodes[0].members[-1]
+    reset = run_cli("terminals", "units", str(el3104), STANDARD, "--reset")
+
+    assert shown.code == 0, shown.err
+    assert shown.out == (
+        "EL3104: AI Standard Channel {channel}.Value: x 0.000305185 V, "
+        "4 decimals (dscale +/-10)\n"
+    )
+    assert set_.code == 0, set_.err
+    assert set_.out.endswith("x 0.30518 mV, 1 decimal (dscale +/-10; set here: "
+                             "scale, unit)\n")  # fmt: skip
+    assert "      dscale: +/-10\n      scale: 0.30518\n      unit: mV\n" in text
+    assert precision.code == 0, precision.err
+    assert (value.scale, value.unit, value.precision) == (0.30518, "mV", 2)
+    assert reset.code == 0, reset.err
+    assert el3104.read_bytes() == (TERMINALS / "EL3104.yaml").read_bytes()
+
+
+def test_units_refused_in_one_line(el3104: Path) -> None:
+    several = run_cli("terminals", "units", str(el3104), STANDARD,
+                      "--member", "nope", "--unit", "V")  # fmt: skip
+    zero = run_cli("terminals", "units", str(el3104), STANDARD, "--scale", "0")
+    long = run_cli("terminals", "units", str(el3104), STANDARD, "--unit", "x" * 16)
+    bits = run_cli("terminals", "units", str(el3104), "Nothing", "--unit", "V")
+
+    assert several.code == 2 and several.err.count("\n") == 1
+    assert "has no member 'nope' (members: 'Status__Underrange'" in several.err
+    assert zero.code == 2 and "scale: Value error, a scale of 0" in zero.err
+    assert long.code == 2 and "longer than a record's EGU" in long.err
+    assert bits.code == 2 and "no symbol 'Nothing'" in bits.err
+    assert el3104.read_bytes() == (TERMINALS / "EL3104.yaml").read_bytes()
+
+
+def test_severity_set_and_back_to_the_names(el3104: Path) -> None:
+    minor = run_cli("terminals", "severity", str(el3104), STANDARD, "minor",
+                    "--member", "Status__Error")  # fmt: skip
+    text = el3104.read_text(encoding="utf-8")
+    back = run_cli("terminals", "severity", str(el3104), STANDARD, "default",
+                   "--member", "status_error")  # fmt: skip
+    loud = run_cli("terminals", "severity", str(el3104), STANDARD, "loud",
+                   "--member", "Status__Error")  # fmt: skip
+    which = run_cli("terminals", "severity", str(el3104), STANDARD, "none")
+
+    assert minor.code == 0, minor.err
+    assert minor.out == (
+        "EL3104: AI Standard Channel {channel}.Status__Error: minor (set)\n"
+    )
+    assert "Over- or Underrange\n      severity: minor\n" in text
+    assert back.code == 0 and back.out.endswith("major (from its name)\n")
+    assert loud.code == 2 and "choose none, minor, major or default" in loud.err
+    assert which.code == 2 and "name one with --member" in which.err
+    assert el3104.read_bytes() == (TERMINALS / "EL3104.yaml").read_bytes()
+
+
+def test_units_and_severity_in_code_match_the_cli(el3104: Path) -> None:
+    terminal = read_terminal_file(el3104)["EL3104"]
+    changed = set_severity(
+        set_units(terminal, STANDARD, "Value", unit="V", offset=-1.5),
+        STANDARD,
+        "Status__Overrange",
+        "none",
+    )
+    with pytest.raises(SelectionError, match="'AI Standard Channel \\{channel\\}' "
+                       "has 8 status bits; name one with --member"):  # fmt: skip
+        set_severity(terminal, STANDARD, None, "none")
+    assert run_cli("terminals", "units", str(el3104), STANDARD, "--unit", "V",
+                   "--offset", "-1.5").code == 0  # fmt: skip
+    assert run_cli("terminals", "severity", str(el3104), STANDARD, "none",
+                   "--member", "Status__Overrange").code == 0  # fmt: skip
+    assert el3104.read_text(encoding="utf-8") == terminal_file_text({"EL3104": changed})
+
+
+@needs_esi
+def test_units_and_severities_survive_regenerate(tmp_path: Path) -> None:
+    def choose(path: Path) -> None:
+        assert run_cli("terminals", "units", str(path), STANDARD, "--unit", "mV",
+                       "--scale", "0.30518").code == 0  # fmt: skip
+        assert run_cli("terminals", "severity", str(path), STANDARD, "minor",
+                       "--member", "Status__Error").code == 0  # fmt: skip
+
+    path, result = regenerated_old_el3104(
+        tmp_path / "terminals", tmp_path / "cache", choose
+    )
+    assert result.code == 0, result.err
+    terminal = read_terminal_file(path)["EL3104"]
+    members = {m.name: m for m in terminal.symbol_nodes[0].members}
+    assert terminal.identity.revision_number == 0x00110000
+    assert (members["Value"].unit, members["Value"].scale) == ("mV", 0.30518)
+    assert members["Status__Error"].severity == "minor"
+    assert "symbol changed" not in result.out  # choices are not ESI facts

@@ -1,7 +1,7 @@
 """`fastcs-ethercat sim`: run the TwinCAT simulator until SIGINT or SIGTERM.
 
-Also runnable as `python -m fastcs_ethercat.cli.sim ...` (what `SimProcess`
-starts), with the same one-line handling of user errors as the main CLI.
+Also runnable alone as `python -m fastcs_ethercat.cli.sim_main ...` (what
+`SimProcess` starts).
 """
 
 from __future__ import annotations
@@ -14,9 +14,8 @@ from typing import Annotated, Any
 import typer
 
 from fastcs_ethercat.ads.constants import ADS_TCP_PORT, ADS_UDP_PORT
-from fastcs_ethercat.cli.options import LogLevelOption, apply_log_level, plain_typer
+from fastcs_ethercat.cli.options import LogLevelOption, apply_log_level
 from fastcs_ethercat.errors import UserError
-from fastcs_ethercat.logs import LogLevel, setup_logging
 from fastcs_ethercat.shipped import BUILTIN_TERMINALS_DIR
 
 log = logging.getLogger("fastcs_ethercat.sim")
@@ -128,18 +127,3 @@ def sim_command(
         asyncio.run(serve(target, config, exit_with_stdin=exit_with_stdin))
     except OSError as error:
         raise UserError(f"cannot listen on {host}: {error.strerror or error}") from None
-
-
-def main() -> None:
-    """Entry point for `python -m fastcs_ethercat.cli.sim` (what `SimProcess`
-    starts): the sim command alone, logging at warning unless told."""
-    from fastcs_ethercat.cli import run_cli
-
-    setup_logging(LogLevel.WARNING)
-    app = plain_typer(SIM_HELP)
-    app.command()(sim_command)
-    run_cli(app, "fastcs-ethercat sim")
-
-
-if __name__ == "__main__":
-    main()

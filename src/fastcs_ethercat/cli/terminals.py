@@ -1,12 +1,13 @@
 """`fastcs-ethercat terminals`: ESI XML to terminal YAML, and the choices in it.
 
 Commands: list, show, generate, regenerate, select-group, select, coe,
-import, edit, check, schema, update-cache. The choices (select-group,
-select, coe) are the functions of `terminals.selection` the editor calls
-too. Modules only some commands need (the comment keeper, catio import, the
-editor) are imported inside them: every `fastcs-ethercat ioc` start imports
-this module. Results go to stdout; progress bars go to stderr; user errors
-are raised as `UserError` (one line, exit code 2, printed by the root app).
+units, severity, import, edit, check, schema, update-cache. The choices
+(select-group, select, coe, units, severity) are the functions of
+`terminals.selection` the editor calls too. Modules only some commands need
+(the comment keeper, catio import, the editor) are imported inside them:
+every `fastcs-ethercat ioc` start imports this module. Results go to stdout;
+progress bars go to stderr; user errors are raised as `UserError` (one
+line, exit code 2, printed by the root app).
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ import fnmatch
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 from rich.console import Console
@@ -43,16 +44,21 @@ from fastcs_ethercat.terminals.files import (
 )
 from fastcs_ethercat.terminals.generate import terminal_from_esi
 from fastcs_ethercat.terminals.loader import load_terminals, terminal_paths
+from fastcs_ethercat.terminals.meaning import member_scaling, member_severity
 from fastcs_ethercat.terminals.merge import ChangeReport, merge_terminal
-from fastcs_ethercat.terminals.model import TerminalType
+from fastcs_ethercat.terminals.model import UNIT_CHOICES, SeverityName, TerminalType
 from fastcs_ethercat.terminals.revisions import regenerate_revision
 from fastcs_ethercat.terminals.schema import schema_text, write_schema
 from fastcs_ethercat.terminals.selection import (
     SelectionError,
+    find_member,
+    find_symbol,
     group_name,
     select_coe,
     select_group,
     select_symbols,
+    set_severity,
+    set_units,
 )
 
 terminals_app = typer.Typer(
@@ -523,6 +529,137 @@ def coe_command(
     )
     on = [obj for obj in changed.coe_objects if obj.selected]
     typer.echo(f"{name}: {len(on)} of {len(changed.coe_objects)} CoE objects selected")
+
+
+SymbolArgument = Annotated[
+    str,
+    typer.Argument(
+        metavar="SYMBOL",
+        help="Symbol by name_template ('AI Standard Channel {channel}') or "
+        "fastcs_name.",
+    ),
+]
+MemberOption = Annotated[
+    str | None,
+    typer.Option(
+        "--member",
+        help="Member by ESI name ('Value', 'Status__Error') or fastcs_name; "
+        "default: the symbol's one value (units) or status bit (severity).",
+    ),
+]
+
+
+@terminals_app.command("units")
+def units_command(
+    file: FileArgument,
+    symbol: SymbolArgument,
+    member: MemberOption = None,
+    scale: Annotated[
+        float | None, typer.Option(help="Engineering value per count.")
+    ] = None,
+    offset: Annotated[
+        float | None, typer.Option(help="Engineering value at count 0.")
+    ] = None,
+    unit: Annotated[str | None, typer.Option(help="EGU, e.g. V, mA, degC.")] = None,
+    precision: Annotated[
+        int | None, typer.Option(help="Decimals shown (PREC).")
+    ] = None,
+    reset: Annotated[
+        bool,
+        typer.Option("--reset", help="Drop the overrides: back to the dscale's."),
+    ] = False,
+    type_name: TypeOption = None,
+) -> None:
+    """Set (or show) the engineering units a member's value is served in:
+    raw * scale + offset, in UNIT with PRECISION decimals; each option
+    overrides what the member's ESI dscale gives, the others stay."""
+    wanted = (scale, offset, unit, precision)
+    if any(value is not None for value in wanted) or reset:
+
+        def edit(terminal: TerminalType) -> TerminalType:
+            return set_units(
+                terminal,
+                symbol,
+                member,
+                scale=scale,
+                offset=offset,
+                unit=unit,
+                precision=precision,
+                reset=reset,
+            )
+
+        name, terminal = _edit_file(file, type_name, edit)
+    else:
+        name, terminal = _read_one(file, type_name)
+    node, chosen = _member_of(file, name, terminal, symbol, member)
+    scaling = member_scaling(chosen)
+    served = scaling.text() if scaling is not None else "raw counts"
+    origin = f"dscale {chosen.dscale}" if chosen.dscale else "no dscale"
+    overridden = [key for key in UNIT_CHOICES if getattr(chosen, key) is not None]
+    if overridden:
+        origin += f"; set here: {', '.join(overridden)}"
+    typer.echo(f"{name}: {node.name_template}.{chosen.name}: {served} ({origin})")
+
+
+@terminals_app.command("severity")
+def severity_command(
+    file: FileArgument,
+    symbol: SymbolArgument,
+    level: Annotated[
+        str,
+        typer.Argument(
+            metavar="LEVEL",
+            help="none, minor or major while the bit or field is set; "
+            "default: what its name implies.",
+        ),
+    ],
+    member: MemberOption = None,
+    type_name: TypeOption = None,
+) -> None:
+    """Set the alarm severity a status bit or field raises while it is set."""
+    levels: dict[str, SeverityName | None] = {
+        "none": "none",
+        "minor": "minor",
+        "major": "major",
+        "default": None,
+    }
+    if level.lower() not in levels:
+        raise UserError(
+            f"severity {level!r}: choose none, minor, major or default", path=file
+        )
+    severity = levels[level.lower()]
+    name, terminal = _edit_file(
+        file,
+        type_name,
+        lambda terminal: set_severity(terminal, symbol, member, severity),
+    )
+    node, chosen = _member_of(file, name, terminal, symbol, member, status=True)
+    effective = member_severity(chosen, node.direction)
+    how = "set" if chosen.severity is not None else "from its name"
+    typer.echo(f"{name}: {node.name_template}.{chosen.name}: {effective} ({how})")
+
+
+def _read_one(file: Path, type_name: str | None) -> tuple[str, TerminalType]:
+    types = read_terminal_file(file)
+    name = _one_type(types, type_name, file)
+    return name, types[name]
+
+
+def _member_of(
+    file: Path,
+    name: str,
+    terminal: TerminalType,
+    symbol: str,
+    member: str | None,
+    *,
+    status: bool = False,
+) -> tuple[Any, Any]:
+    """The symbol node and member a `units` / `severity` command names."""
+    try:
+        node = terminal.symbol_nodes[find_symbol(terminal, symbol)]
+        return node, node.members[find_member(node, member, status)]
+    except SelectionError as error:
+        raise UserError(str(error), path=file, where=name) from None
 
 
 @terminals_app.command("edit")

@@ -22,7 +22,19 @@ from fastcs_ethercat.editor.pv_preview import (
 )
 from fastcs_ethercat.editor.session import EditedType, EditorSession
 from fastcs_ethercat.errors import UserError
-from fastcs_ethercat.terminals.model import CoeObject, TerminalType
+from fastcs_ethercat.terminals.meaning import (
+    is_status,
+    member_scaling,
+    member_severity,
+    severity_of_name,
+)
+from fastcs_ethercat.terminals.model import (
+    UNIT_CHOICES,
+    CoeObject,
+    SymbolMember,
+    SymbolNode,
+    TerminalType,
+)
 from fastcs_ethercat.terminals.selection import (
     SelectionError,
     rename_coe,
@@ -31,6 +43,8 @@ from fastcs_ethercat.terminals.selection import (
     select_group,
     select_symbols,
     set_oversampling,
+    set_severity,
+    set_units,
 )
 
 ERROR = "text-negative text-sm"
@@ -160,6 +174,8 @@ class _TypeView:
         self.edited = edited
         self.live = live
         self.prefix = EXAMPLE_PREFIX
+        self.opened: set[int] = set()
+        """Symbols whose units and severities are open (kept across redraws)."""
 
     @property
     def terminal(self) -> TerminalType:
@@ -349,17 +365,23 @@ class _TypeView:
         """The symbol's members with the PV of its first channel each."""
         node = self.terminal.symbol_nodes[position]
         first = node.channels[0] if node.channels else None
-        pv_of = {p.member: p for p in previews if p.channel == first}
+        pv_of: dict[str | None, PvPreview] = {}
+        for preview in previews:  # a value's own PV before its raw twin's
+            if preview.channel == first:
+                pv_of.setdefault(preview.member, preview)
         whole = pv_of.get(None)
         rows = []
         for member in node.members:
             preview = pv_of.get(member.name) or whole
+            scaling = member_scaling(member)
             rows.append(
                 {
                     "member": member.name.replace("__", "."),
                     "type": member.type_name,
                     "offset": member.bit_offset,
                     "bits": member.bit_size,
+                    "served": scaling.text() if scaling else "raw",
+                    "severity": member_severity(member, node.direction),
                     "pv": _pv_text(preview) if preview else "(not selected)",
                 }
             )
@@ -370,11 +392,79 @@ class _TypeView:
                 ("type", "Type"),
                 ("offset", "Bit offset"),
                 ("bits", "Bits"),
+                ("served", "Served as"),
+                ("severity", "Severity when set"),
                 ("pv", f"PV (channel {first})" if first is not None else "PV"),
             )
         ]
         table = ui.table(columns=columns, rows=rows).props("dense flat")
         _test(table.classes("w-full ml-10 text-xs"), f"members-{position}")
+        expansion = ui.expansion(
+            "Units and alarm severities", value=position in self.opened
+        ).classes("ml-10")
+        _test(expansion, f"meaning-toggle-{position}")
+        expansion.on_value_change(
+            lambda e: (self.opened.add if e.value else self.opened.discard)(position)
+        )
+        with expansion, _test(ui.column().classes("gap-1"), f"meaning-{position}"):
+            for index, member in enumerate(node.members):
+                self._member_meaning(position, node, index, member)
+
+    def _member_meaning(
+        self, position: int, node: SymbolNode, index: int, member: SymbolMember
+    ) -> None:
+        """A member's overrides: units of a value, severity of a status bit."""
+        where = f"{position}-{index}"
+        symbol = node.fastcs_name
+        with ui.row().classes("items-start gap-2"):
+            ui.label(member.name.replace("__", ".")).classes("w-48 font-mono")
+            if is_status(member):
+                derived = severity_of_name(member.name, node.direction)
+                options = {"default": f"default ({derived})"}
+                options.update({level: level for level in ("none", "minor", "major")})
+                select = ui.select(options, value=member.severity or "default")
+                _test(select.classes("w-40").props("dense"), f"severity-{where}")
+                message = _test(ui.label(""), f"meaning-error-{where}").classes(ERROR)
+                select.on_value_change(
+                    lambda e: self.apply(
+                        partial(
+                            set_severity,
+                            symbol=symbol,
+                            member=member.fastcs_name,
+                            severity=None if e.value == "default" else e.value,
+                        ),
+                        message,
+                    )
+                )
+                return
+            fields = {}
+            for key in UNIT_CHOICES:
+                value = getattr(member, key)
+                box = ui.input(key, value="" if value is None else str(value))
+                fields[key] = _test(
+                    box.classes("w-28").props("dense"), f"{key}-{where}"
+                )
+            message = _test(ui.label(""), f"meaning-error-{where}").classes(ERROR)
+
+            def changed(_: Any) -> None:
+                try:
+                    wanted = _unit_overrides({k: f.value for k, f in fields.items()})
+                except ValueError as error:
+                    message.text = str(error)
+                    return
+                self.apply(
+                    partial(
+                        set_units,
+                        symbol=symbol,
+                        member=member.fastcs_name,
+                        reset=True,
+                        **wanted,
+                    ),
+                    message,
+                )
+
+            for box in fields.values():
+                box.on("change", changed)
 
     def _coe(self, previews: list[PvPreview]) -> None:
         objects = self.terminal.coe_objects
@@ -468,3 +558,20 @@ class _TypeView:
     def _revert(self) -> None:
         self.session.revert(self.edited.name)
         self.body.refresh()
+
+
+def _unit_overrides(texts: dict[str, str]) -> dict[str, Any]:
+    """The editor's unit fields as `set_units` takes them (empty: not set)."""
+    wanted: dict[str, Any] = {}
+    for key, text in texts.items():
+        text = (text or "").strip()
+        if not text:
+            continue
+        if key == "unit":
+            wanted[key] = text
+            continue
+        try:
+            wanted[key] = int(text) if key == "precision" else float(text)
+        except ValueError:
+            raise ValueError(f"{key}: {text!r} is not a number") from None
+    return wanted

@@ -23,8 +23,10 @@ from fastcs_ethercat.ioc.naming import (
     coe_request,
     plan_pv_names,
     symbol_request,
+    twin_request,
 )
 from fastcs_ethercat.ioc.resolve import coe_points
+from fastcs_ethercat.terminals.meaning import RAW_SUFFIX, has_raw_twin
 from fastcs_ethercat.terminals.model import TerminalType
 from fastcs_ethercat.terminals.symbols import expanded_symbols
 
@@ -87,6 +89,8 @@ def _leaves(
                     writable=writable,
                 )
                 leaves.append(_Leaf(request, leaf, member=member.name, **where))
+                if has_raw_twin(member.scaling):
+                    leaves.append(_raw_twin(request, leaf, member.name, **where))
         else:
             request = symbol_request(
                 path,
@@ -96,12 +100,26 @@ def _leaves(
                 writable=writable,
             )
             leaves.append(_Leaf(request, name, **where))
+            if len(symbol.members) == 1 and has_raw_twin(symbol.members[0].scaling):
+                leaves.append(_raw_twin(request, name, None, **where))
     for coe in coe_points(terminal):
         request = coe_request(path, COE_LEAF_PREFIX + coe.attribute, coe)
         sub = f":{coe.subindex:02x}" if coe.subindex else ""
         source = f"CoE 0x{coe.index:04x}{sub}"
         leaves.append(_Leaf(request, source))
     return leaves
+
+
+def _raw_twin(
+    value: PvRequest,
+    source: str,
+    member: str | None,
+    node: int | None,
+    channel: int | None,
+) -> _Leaf:
+    """The leaf of a scaled value's raw count, beside it (as the IOC serves it)."""
+    leaf = source + RAW_SUFFIX
+    return _Leaf(twin_request(value, leaf, RAW_SUFFIX), source, node, channel, member)
 
 
 def preview_pvs(terminal: TerminalType, type_name: str, prefix: str) -> list[PvPreview]:

@@ -6,9 +6,10 @@ new alarm (CA in records processed with their held value, CA out records
 without processing, PVA with only `alarm` and `timeStamp` posted).
 
 Alarms are not sticky, as in an EPICS record: the next value published for
-the attribute carries NO_ALARM again (`ioc.health` holds values back while an
-attribute is in alarm). Call from the IOC's event loop once the transports
-serve; before that, whatever is not built yet is skipped.
+the attribute carries its own alarm again (`value_alarm`: NO_ALARM, or the
+STATE alarm of a status bit that is set), and `ioc.health` holds values back
+while an attribute is in alarm. Call from the IOC's event loop once the
+transports serve; before that, whatever is not built yet is skipped.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from typing import Any, Final
 from fastcs.attributes import Attribute
 
 from fastcs_ethercat.ioc import fastcs_adapter
+from fastcs_ethercat.ioc.datatypes import severity_table
 from fastcs_ethercat.ioc.fastcs_adapter import Parts
 
 
@@ -96,6 +98,24 @@ class AlarmState:
 
 
 NO_ALARM: Final = AlarmState(Severity.NO_ALARM, Status.NO_ALARM)
+VALUE_STATUS: Final = Status.STATE
+"""The status of an alarm a value carries itself (a set Error bit, a slave
+not in OP): EPICS' STATE, as a bi record's OSV gives it."""
+
+
+def state_alarm(severity: int) -> tuple[int, int]:
+    """(severity, status) of a value whose state has `severity`."""
+    return (severity, VALUE_STATUS) if severity else (0, 0)
+
+
+def value_alarm(attribute: Attribute[Any, Any]) -> AlarmState:
+    """The alarm of the attribute's current value by itself: NO_ALARM unless
+    its datatype says the value is an alarm state (`datatypes.ValueAlarms`)."""
+    severity_of = severity_table(attribute.datatype)
+    if severity_of is None or not hasattr(attribute, "get"):
+        return NO_ALARM
+    severity = severity_of(attribute.get())  # pyright: ignore[reportAttributeAccessIssue]
+    return AlarmState(Severity(severity), VALUE_STATUS) if severity else NO_ALARM
 
 
 def set_alarm(
@@ -111,9 +131,9 @@ def set_alarm(
 
 
 def clear_alarm(attribute: Attribute[Any, Any], parts: Parts = Parts.ALL) -> int:
-    """Return `attribute`'s PVs (of `parts`) to NO_ALARM, value unchanged;
-    PVs reached."""
-    return publish_alarm(attribute, NO_ALARM, parts)
+    """Return `attribute`'s PVs (of `parts`) to the alarm of their value
+    (`value_alarm`), value unchanged; PVs reached."""
+    return publish_alarm(attribute, value_alarm(attribute), parts)
 
 
 def set_alarms(

@@ -17,6 +17,15 @@ What FastCS 0.14.4 does with them decides the mapping:
   out-of-range caput) and reject an out-of-range PVA put.
 - Enums with up to 16 members become mbbi/mbbo (state strings of at most 25
   characters), longer ones long-string records.
+
+Two additions of this project:
+
+- **Engineering units** (`engineering`): a scaled value is an `ExactFloat`
+  in its unit (EGU) with its precision (PREC) and the range of its raw type
+  converted (PVA display limits, DRVL/DRVH of an output).
+- **States that are alarms** (`AlarmBool`, `AlarmInt`, `AlarmEnum`): the
+  severity of each value is part of the datatype, a lookup in a table made
+  once (`alarm_severity(value)`), so publishing a value costs one index.
 """
 
 from __future__ import annotations
@@ -26,13 +35,15 @@ import math
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Final
+from functools import cached_property
+from typing import Any, Final, Protocol, TypeVar, runtime_checkable
 
 import numpy as np
 from fastcs.datatypes import Bool, DataType, Enum, Float, Int, String, Waveform
 
 from fastcs_ethercat.ads.errors import AdsCodecError
 from fastcs_ethercat.ads.values import TwinCatType, parse_type
+from fastcs_ethercat.terminals.meaning import Scaling
 
 MAX_ENUM_LABEL_LENGTH: Final = 25
 """mbbi/mbbo state strings (ZRST ...) hold 25 bytes plus NUL; softioc refuses
@@ -74,6 +85,94 @@ class IntegralFloat(ExactFloat):
 
 
 _DISPLAY_PRECISION: Final = {"REAL": 6, "LREAL": 9}
+E = TypeVar("E", bound=enum.Enum)
+
+
+# -- states that are alarms -----------------------------------------------------
+
+
+@runtime_checkable
+class ValueAlarms(Protocol):
+    """A datatype whose values carry an EPICS alarm severity of their own."""
+
+    def alarm_severity(self, value: Any) -> int:
+        """0 (NO_ALARM), 1 (MINOR), 2 (MAJOR) or 3 (INVALID) for `value`."""
+        ...
+
+
+def severity_table(datatype: DataType) -> Any:
+    """`datatype.alarm_severity`, or None for a datatype without alarms."""
+    return datatype.alarm_severity if isinstance(datatype, ValueAlarms) else None
+
+
+@dataclass(frozen=True)
+class AlarmBool(Bool):
+    """A bit whose two states carry severities: (when False, when True)."""
+
+    severities: tuple[int, int] = (0, 0)
+
+    def alarm_severity(self, value: Any) -> int:
+        return self.severities[1 if value else 0]
+
+
+@dataclass(frozen=True)
+class AlarmInt(Int):
+    """A bit field (`Limit 1`) with a severity while it is not zero."""
+
+    set_severity: int = 0
+
+    def alarm_severity(self, value: Any) -> int:
+        return self.set_severity if value else 0
+
+
+@dataclass(frozen=True)
+class AlarmEnum(Enum[Any]):
+    """An enum whose members carry severities, in member order (mbbi's
+    ZRSV, ONSV ... as a table)."""
+
+    severities: tuple[int, ...] = ()
+
+    @cached_property
+    def _by_member(self) -> dict[Any, int]:
+        return dict(zip(self.members, self.severities, strict=False))
+
+    def alarm_severity(self, value: Any) -> int:
+        return self._by_member.get(value, 0)
+
+
+def type_label(datatype: DataType) -> str:
+    """The datatype's name for PV lists: an alarm state is listed as the
+    FastCS type it is (`AlarmBool` -> `Bool`)."""
+    kind = type(datatype)
+    if isinstance(datatype, ValueAlarms):
+        kind = kind.__mro__[1]
+    return kind.__name__
+
+
+def alarm_enum(enum_cls: type[E], severities: Mapping[E, int]) -> AlarmEnum:
+    """An `AlarmEnum` of `enum_cls` with a severity per member (0 if unnamed)."""
+    return AlarmEnum(enum_cls, tuple(severities.get(m, 0) for m in enum_cls))
+
+
+# -- engineering units ----------------------------------------------------------
+
+
+def engineering(type_name: str, scaling: Scaling) -> DataType:
+    """The datatype of a value of `type_name` served as `scaling` says: in
+    its unit with its precision, converted to a float where it converts."""
+    try:
+        parsed = parse_type(type_name)
+    except AdsCodecError as error:
+        raise UnsupportedTypeError(str(error)) from None
+    if parsed.kind not in ("int", "bits", "float"):
+        raise UnsupportedTypeError(f"no engineering units for {type_name}")
+    units = scaling.unit or None
+    if not scaling.converts:
+        return to_fastcs(type_name, units=units, precision=scaling.precision)
+    if parsed.kind == "float":
+        return ExactFloat(units=units, prec=scaling.decimals)
+    ends = [count * scaling.scale + scaling.offset for count in integer_range(parsed)]
+    return ExactFloat(units=units, prec=scaling.decimals, min=min(ends), max=max(ends))
 
 
 def to_fastcs(

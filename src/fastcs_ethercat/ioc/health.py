@@ -1,15 +1,20 @@
 """Which attributes are in alarm, and why: the one place the IOC raises alarms.
 
 An attribute can be invalid for several reasons at once (the target is gone,
-its terminal left OP, its sum-read item failed); it is back to NO_ALARM only
-when every reason is gone. EPICS alarms set through `ioc.alarms` are not
-sticky: the next value FastCS publishes carries NO_ALARM. So while an
+its terminal left OP, its sum-read item failed); it is back to the alarm of
+its own value (`alarms.value_alarm`: NO_ALARM, or a set Error bit's MAJOR)
+only when every reason is gone. EPICS alarms set through `ioc.alarms` are
+not sticky: the next value published carries its own alarm. So while an
 attribute is in alarm its new values are held back (the last one is kept)
-and published when the last reason goes, followed by `clear_alarm`.
+and published when the last reason goes, followed by its value's alarm.
 
 Reasons that a fresh value disproves (`FRESH`: the read failed, the target
 was unreachable) go by themselves when the poller hands on a new value;
 the others (a terminal's state, a chain change) only by `mark_ok`.
+
+An attribute may have followers (`follow`): attributes that show a value
+made from each of its values (a scaled value's raw count and engineering
+value come from one read) and share its every alarm.
 
 An output's setpoint PVs can also have a problem of their own, which its
 readback does not share: a write that did not reach the PLC, one whose
@@ -22,7 +27,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
-from collections.abc import Awaitable, Callable, Iterable
+from collections.abc import Awaitable, Callable, Iterable, Iterator
 from dataclasses import dataclass
 from typing import Any, Final
 
@@ -41,6 +46,10 @@ READ: Final = "read"
 """The point's sum-read item failed."""
 FRESH: Final = frozenset({COMM, READ})
 """Reasons a freshly read value proves wrong."""
+
+
+Convert = Callable[[Any], Any]
+"""A leader's value -> its follower's value."""
 
 
 @dataclass(frozen=True)
@@ -66,6 +75,7 @@ class Health:
         self._reasons: dict[int, dict[str, Reason]] = {}
         self._attributes: dict[int, Attribute[Any, Any]] = {}
         self._held: dict[int, tuple[Any, float | None]] = {}
+        self._followers: dict[int, list[tuple[AttrR[Any, Any], Convert]]] = {}
         self._setpoint: dict[int, Reason] = {}
         """Problems of setpoint PVs alone (ioc.setpoints)."""
         self._watches: dict[int, ValueWatch] = {}
@@ -73,6 +83,22 @@ class Health:
         """Alarm changes published (for tests and statistics)."""
         self.failures = 0
         """Alarm publications that raised (logged, never propagated)."""
+
+    def follow(
+        self, leader: Attribute[Any, Any], follower: AttrR[Any, Any], convert: Convert
+    ) -> None:
+        """`follower` gets `convert(value)` of every value posted for
+        `leader`, at its time, and every alarm reason `leader` gets."""
+        self._followers.setdefault(id(leader), []).append((follower, convert))
+
+    def _with_followers(
+        self, attributes: Iterable[Attribute[Any, Any]]
+    ) -> Iterator[Attribute[Any, Any]]:
+        followers = self._followers
+        for attribute in attributes:
+            yield attribute
+            for follower, _ in followers.get(id(attribute), ()):
+                yield follower
 
     def is_invalid(self, attribute: Attribute[Any, Any]) -> bool:
         return bool(self._reasons.get(id(attribute)))
@@ -93,7 +119,7 @@ class Health:
     ) -> None:
         """Put `attributes` into INVALID alarm for `reason` (idempotent)."""
         entry = Reason(status, message)
-        for attribute in attributes:
+        for attribute in self._with_followers(attributes):
             key = id(attribute)
             reasons = self._reasons.setdefault(key, {})
             self._attributes[key] = attribute
@@ -106,36 +132,41 @@ class Health:
         self, attributes: Iterable[Attribute[Any, Any]], reason: str
     ) -> None:
         """Drop `reason`; an attribute with no reason left is valid again."""
-        for attribute in attributes:
+        for attribute in list(self._with_followers(attributes)):
             await self._drop(attribute, {reason})
 
     async def post(
         self, attribute: AttrR[Any, Any], value: Any, stamp: float | None = None
     ) -> None:
         """A fresh value read at `stamp`: publish it, unless the attribute
-        stays in alarm."""
+        stays in alarm; then its followers' values."""
         key = id(attribute)
         if key in self._reasons:
-            self._held[key] = (value, stamp)
-            await self._drop(attribute, FRESH)
-            return
-        await self.publisher.publish(attribute, value, stamp)
-        if self._watches:
-            await self._watched(attribute, value)
+            await self._hold(attribute, value, stamp)
+        else:
+            await self.publisher.publish(attribute, value, stamp)
+            if self._watches:
+                await self._watched(attribute, value)
+        followers = self._followers.get(key)
+        if followers is not None:
+            for follower, convert in followers:
+                await self.post(follower, convert(value), stamp)
 
     async def post_batch(
         self, values: list[tuple[AttrR[Any, Any], Any]], stamp: float
     ) -> Published:
-        """Fresh values of one poll cycle read at `stamp`: `post` for each,
-        the ones not in alarm published together."""
-        reasons = self._reasons
+        """Fresh values of one poll cycle read at `stamp`, as `post` for each
+        (followers included); the ones not in alarm published together."""
         failures: list[Failure] = []
+        if self._followers:
+            values = self._and_followers(values, failures)
+        reasons = self._reasons
         if reasons:
             held = [(a, v) for a, v in values if id(a) in reasons]
             values = [(a, v) for a, v in values if id(a) not in reasons]
             for attribute, value in held:
                 try:
-                    await self.post(attribute, value, stamp)
+                    await self._hold(attribute, value, stamp)
                 except Exception as error:  # one value must not stop the others
                     failures.append((attribute, error))
         published = await self.publisher.publish_batch(values, stamp)
@@ -145,6 +176,34 @@ class Health:
                 if id(attribute) in self._watches and id(attribute) not in failed:
                     await self._watched(attribute, value)
         return published._replace(failures=failures + published.failures)
+
+    def _and_followers(
+        self, values: list[tuple[AttrR[Any, Any], Any]], failures: list[Failure]
+    ) -> list[tuple[AttrR[Any, Any], Any]]:
+        """`values`, each followed by its followers' values (theirs too)."""
+        expanded: list[tuple[AttrR[Any, Any], Any]] = []
+
+        def add(attribute: AttrR[Any, Any], value: Any) -> None:
+            expanded.append((attribute, value))
+            for follower, convert in self._followers.get(id(attribute), ()):
+                try:
+                    converted = convert(value)
+                except Exception as error:  # one value must not stop the others
+                    failures.append((follower, error))
+                else:
+                    add(follower, converted)
+
+        for attribute, value in values:
+            add(attribute, value)
+        return expanded
+
+    async def _hold(
+        self, attribute: AttrR[Any, Any], value: Any, stamp: float | None
+    ) -> None:
+        """A fresh value of an attribute in alarm: kept, shown when the
+        alarm ends; the fresh value disproves `FRESH` reasons."""
+        self._held[id(attribute)] = (value, stamp)
+        await self._drop(attribute, FRESH)
 
     def watch_value(self, attribute: AttrR[Any, Any], watch: ValueWatch) -> None:
         """Call `watch` once, with the next value published for `attribute`
@@ -168,6 +227,11 @@ class Health:
         reason) until `setpoint_fine`."""
         self._setpoint[id(attribute)] = Reason(status, message)
         self._show_setpoint_soon(attribute)
+
+    def setpoint_status(self, attribute: Attribute[Any, Any]) -> Status | None:
+        """The status of the setpoint's own problem, None without one."""
+        own = self._setpoint.get(id(attribute))
+        return None if own is None else own.status
 
     def setpoint_fine(self, attribute: Attribute[Any, Any]) -> None:
         """The setpoint's own problem is gone: its PVs show the attribute's
@@ -229,7 +293,8 @@ class Health:
         self._publish_state(attribute, reason.alarm(), self._parts(attribute))
 
     def _clear(self, attribute: Attribute[Any, Any]) -> None:
-        self._publish_state(attribute, NO_ALARM, self._parts(attribute))
+        state = alarms.value_alarm(attribute)  # a set Error bit stays MAJOR
+        self._publish_state(attribute, state, self._parts(attribute))
 
     def _publish_state(
         self, attribute: Attribute[Any, Any], state: AlarmState, parts: Parts

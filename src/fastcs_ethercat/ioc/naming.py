@@ -274,6 +274,12 @@ def point_request(path: tuple[Node, ...], point: Point) -> PvRequest:
     )
 
 
+def twin_request(request: PvRequest, leaf: str, suffix: str) -> PvRequest:
+    """The request of a read-only attribute served beside `request`'s (a
+    scaled value's raw count): same place, each readable name + `suffix`."""
+    return PvRequest(request.path, leaf, tuple(name + suffix for name in request.names))
+
+
 def coe_request(path: tuple[Node, ...], leaf: str, coe: CoePoint) -> PvRequest:
     """The request of a CoE value of the terminal at `path`: under its object,
     named by its sub-item (then with its sub-index, if two share a name)."""

@@ -14,6 +14,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from enum import Enum
 
+from fastcs_ethercat.terminals.meaning import Scaling
+
 
 class PointKind(Enum):
     """How a point's value sits in the bytes of its symbol."""
@@ -53,9 +55,10 @@ class Point:
     bit_size: int = 0
     length: int = 1  # elements, for ARRAY
     writable: bool = False  # an RxPDO output
-    description: str = ""
-    units: str = ""
+    description: str = ""  # DESC: from the ESI's names, within 40 characters
     enum_texts: tuple[tuple[int, str], ...] = ()
+    scaling: Scaling | None = None  # engineering units (terminals.meaning)
+    severity: int = 0  # EPICS alarm severity while a status bit/field is set
     channel: int | None = None
     """The terminal channel it belongs to (its PV sits under `CH<n>`)."""
     entry_name: str = ""
@@ -91,6 +94,7 @@ class CoePoint:
     description: str = ""
     default: str = ""
     enum_texts: tuple[tuple[int, str], ...] = ()
+    units: str = ""  # EGU, from the ESI's unit code
     name: str = ""
     """The sub-item's ESI name (the object's when it has none): its PV name."""
     object_name: str = ""

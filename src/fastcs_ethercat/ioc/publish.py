@@ -7,8 +7,10 @@ under one lock and none of them waits on another thread. The posting itself
 (`Update(value, timestamp)` straight to the CA record and the PVA PV) is
 `fastcs_adapter`'s until FastCS releases its own `Update`.
 
-Alarms are not sticky here either: a published value carries NO_ALARM (see
-`ioc.alarms`, `ioc.health`).
+Alarms are not sticky here either: a published value carries its own alarm,
+NO_ALARM unless its datatype makes it an alarm state (a set Error bit: the
+severity from the datatype's table, status STATE; see `ioc.alarms`,
+`ioc.health`).
 """
 
 from __future__ import annotations
@@ -20,6 +22,8 @@ from typing import Any, Final, NamedTuple
 from fastcs.attributes import AttrR
 
 from fastcs_ethercat.collector import freeze_new, settle_garbage_collector
+from fastcs_ethercat.ioc.alarms import state_alarm
+from fastcs_ethercat.ioc.datatypes import severity_table
 from fastcs_ethercat.ioc.deadband import Deadbands
 from fastcs_ethercat.ioc.fastcs_adapter import CycleWrites, Update, ValueRoute
 
@@ -35,6 +39,11 @@ class Published(NamedTuple):
 
     posted: int
     failures: list[Failure]
+
+
+_Route = tuple[ValueRoute, float, Any]
+"""An attribute's route, its deadband (0: none) and its datatype's severity
+table (None: no alarms)."""
 
 
 class Publisher:
@@ -55,7 +64,7 @@ class Publisher:
         """Values posted since start (a running total, for rates)."""
         self.within_deadband = 0
         """New values not posted: within their deadband of the last posted."""
-        self._routes: dict[int, tuple[ValueRoute, float]] = {}
+        self._routes: dict[int, _Route] = {}
 
     def start(self) -> None:
         """The transports serve: post straight to their PVs from now on."""
@@ -95,18 +104,24 @@ class Publisher:
                     entry = routes.get(id(attribute))
                     if entry is None:
                         band = self.deadbands.of_attribute(attribute)
+                        severity_of = severity_table(datatype)
                         route = ValueRoute(attribute)
-                        routes[id(attribute)] = (route, band)
+                        routes[id(attribute)] = (route, band, severity_of)
                         made += 1
                     else:
-                        route, band = entry
+                        route, band, severity_of = entry
                         if band:
                             if abs(validated - attribute.get()) <= band:
                                 self.within_deadband += 1
                                 continue
                         elif datatype.equal(attribute.get(), validated):
                             continue
-                    pending = route.post(Update(validated, stamp), writes)
+                    if severity_of is None:
+                        update = Update(validated, stamp)
+                    else:  # a state bit: its alarm goes with it
+                        alarm = state_alarm(severity_of(validated))
+                        update = Update(validated, stamp, *alarm)
+                    pending = route.post(update, writes)
                 except Exception as error:
                     failures.append((attribute, error))
                     continue

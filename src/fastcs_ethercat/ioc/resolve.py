@@ -31,6 +31,13 @@ from fastcs_ethercat.ioc.plan import (
     SlaveInfo,
     TerminalPlan,
 )
+from fastcs_ethercat.terminals.meaning import (
+    SEVERITY_LEVELS,
+    Scaling,
+    coe_unit,
+    describe,
+    severity_of_name,
+)
 from fastcs_ethercat.terminals.model import CoeObject, TerminalType
 from fastcs_ethercat.terminals.names import snake_name, take_unique
 from fastcs_ethercat.terminals.registry import RegistryMatch, TerminalRegistry
@@ -49,6 +56,8 @@ SHOWN_DROPPED = 3
 """Symbols a warning names before it says how many more there are."""
 
 Types = Mapping[str, AdsDataTypeEntry]
+NUMBER_KINDS = frozenset({PointKind.SCALAR, PointKind.ARRAY})
+"""Points whose value can be served in engineering units (not status bits)."""
 
 
 def snake_case(text: str) -> str:
@@ -147,7 +156,8 @@ def _point(
     *,
     writable: bool = False,
     description: str = "",
-    units: str = "",
+    scaling: Scaling | None = None,
+    severity: int = 0,
     channel: int | None = None,
     entry_name: str = "",
 ) -> Point:
@@ -166,13 +176,32 @@ def _point(
         length=member.length,
         writable=writable,
         description=description,
-        units=units,
+        scaling=scaling,
+        severity=severity,
         channel=channel,
         entry_name=entry_name,
         source=entry.name,
         source_offset=member.byte_offset,
         source_type=entry.type_name,
         source_size=entry.size,
+    )
+
+
+def _live_point(
+    master: str, entry: AdsSymbolEntry, member: _Member, attribute: str, kind: str
+) -> Point:
+    """A point of a symbol no YAML describes (runtime, master, unknown
+    terminal): its DESC and severity from its names (read-only, so nothing
+    here is an output)."""
+    rest = entry.name.partition(".")[2] or entry.name
+    severity = severity_of_name(member.path or rest)
+    return _point(
+        master,
+        entry,
+        member,
+        attribute,
+        description=describe(kind or None, rest, member.path or None),
+        severity=SEVERITY_LEVELS[severity],
     )
 
 
@@ -279,7 +308,7 @@ def resolve_terminal(
     match = registry.lookup(slave.product_code, slave.revision, slave.vendor_id)
     if match is None:
         plan = TerminalPlan(slave=slave, terminal_type=None)
-        plan.points = generic_points(master, entries, types)
+        plan.points = generic_points(master, entries, types, slave.type_name)
         if entries:
             plan.warnings.append(
                 f"{slave.name}: no terminal YAML for product code "
@@ -309,7 +338,9 @@ def resolve_terminal(
         if entry is None:
             dropped.append(symbol.name)
             continue
-        plan.points.extend(_yaml_points(master, entry, symbol, types, names))
+        plan.points.extend(
+            _yaml_points(master, entry, symbol, types, names, match.type_name)
+        )
     if not match.exact or dropped:
         described = {symbol.name for symbol in symbols} | RUNTIME_ATTRIBUTES.keys()
         unknown = sum(1 for rest in live if rest not in described)
@@ -319,7 +350,9 @@ def resolve_terminal(
         if entry is not None:
             for member in symbol_members(entry, types):
                 attribute = take_unique(attribute, names)
-                plan.points.append(_point(master, entry, member, attribute))
+                plan.points.append(
+                    _live_point(master, entry, member, attribute, match.type_name)
+                )
     plan.coe = views.coe(terminal)
     return plan
 
@@ -372,10 +405,13 @@ def _yaml_points(
     symbol: ExpandedSymbol,
     types: Types,
     names: set[str],
+    type_name: str,
 ) -> list[Point]:
     members = symbol_members(entry, types) or _fallback_members(symbol)
     by_path = {".".join(m.path): m for m in symbol.members}
     by_last = {m.path[-1]: m for m in symbol.members}
+    if len(symbol.members) == 1:  # a one-entry PDO is a symbol of the entry's type
+        by_path[""] = symbol.members[0]
     writable = symbol.direction == "output"
     points: list[Point] = []
     for member in members:
@@ -397,7 +433,17 @@ def _yaml_points(
                 member,
                 take_unique(attribute, names),
                 writable=writable,
-                description=(yaml_member.comment or "") if yaml_member else "",
+                description=describe(
+                    type_name,
+                    symbol.name,
+                    yaml_member.name if yaml_member else member.path or None,
+                ),
+                scaling=(
+                    yaml_member.scaling
+                    if yaml_member and member.kind in NUMBER_KINDS
+                    else None
+                ),
+                severity=SEVERITY_LEVELS[yaml_member.severity] if yaml_member else 0,
                 channel=symbol.channel,
                 entry_name=member.path or symbol.entry_name,
             )
@@ -406,7 +452,7 @@ def _yaml_points(
 
 
 def generic_points(
-    master: str, entries: Sequence[AdsSymbolEntry], types: Types
+    master: str, entries: Sequence[AdsSymbolEntry], types: Types, kind: str = ""
 ) -> list[Point]:
     """Every live symbol of an unknown terminal, read-only, in name order."""
 
@@ -414,7 +460,7 @@ def generic_points(
         base = RUNTIME_ATTRIBUTES.get(rest) or snake_case(rest)
         return f"{base}_{snake_case(member.path)}" if member.path else base
 
-    return _live_points(master, entries, types, name)
+    return _live_points(master, entries, types, name, kind)
 
 
 def _live_points(
@@ -422,16 +468,18 @@ def _live_points(
     entries: Sequence[AdsSymbolEntry],
     types: Types,
     name: Callable[[str, _Member], str],
+    kind: str = "",
 ) -> list[Point]:
     """Every member of `entries`, read-only, in name order; `name(rest of
-    the symbol's name, member)` names each attribute (made unique)."""
+    the symbol's name, member)` names each attribute (made unique); `kind`
+    (the slave's type) starts their descriptions."""
     names: set[str] = set()
     points: list[Point] = []
     for entry in sorted(entries, key=lambda e: e.name):
         rest = entry.name.partition(".")[2]
         for member in symbol_members(entry, types):
             attribute = take_unique(name(rest, member), names)
-            points.append(_point(master, entry, member, attribute))
+            points.append(_live_point(master, entry, member, attribute, kind))
     return points
 
 
@@ -457,6 +505,7 @@ def coe_object_points(obj: CoeObject) -> list[CoePoint]:
                 description=obj.name,
                 default=obj.default_value or obj.default_data or "",
                 enum_texts=tuple((e.value, e.text) for e in obj.enum),
+                units=coe_unit(obj.unit),
                 name=obj.name,
                 object_name=obj.name,
             )
@@ -474,6 +523,7 @@ def coe_object_points(obj: CoeObject) -> list[CoePoint]:
             description=f"{obj.name}: {sub.name}",
             default=sub.default_value or sub.default_data or "",
             enum_texts=tuple((e.value, e.text) for e in sub.enum),
+            units=coe_unit(sub.unit or obj.unit),
         )
         for sub in obj.sub_items
         if sub.selected

@@ -14,7 +14,11 @@ without an alarm, a value the PLC does not hold:
   either, INVALID/TIMEOUT ("outcome unknown") until the next readback, which
   the setpoint then shows;
 - at start, and after every reconnect and online change, INVALID/UDF until
-  the first readback, which the setpoint then takes over.
+  the first readback, which the setpoint then takes over; a setpoint whose
+  last write failed keeps INVALID/WRITE (or TIMEOUT) meanwhile: a resync
+  that lands between a refused put and its answer to the client must not
+  turn the put's failure into a mere "waiting" (the client would count the
+  write as done).
 
 The alarms themselves are `Health`'s (setpoint problems); this decides which.
 """
@@ -34,6 +38,8 @@ from fastcs_ethercat.ioc.health import Health
 logger = logging.getLogger(__name__)
 
 WAITING: Final = "waiting for the value the PLC holds"
+UNDELIVERED: Final = frozenset({Status.WRITE, Status.TIMEOUT})
+"""A setpoint's own problems that say its last write did not (surely) land."""
 
 
 class Setpoints:
@@ -48,7 +54,8 @@ class Setpoints:
         for attribute in attributes:
             fastcs_adapter.watch_ca_puts(attribute, self.health.show_setpoint)
             fastcs_adapter.take_over_setpoints(attribute)
-            self.health.setpoint_problem(attribute, Status.UDF, WAITING)
+            if self.health.setpoint_status(attribute) not in UNDELIVERED:
+                self.health.setpoint_problem(attribute, Status.UDF, WAITING)
             self.health.watch_value(attribute, self._from_plc)
 
     async def _from_plc(self, attribute: AttrR[Any, Any], value: Any) -> None:

@@ -53,7 +53,7 @@ class SimProcess(ChildProcess):
         args = [
             sys.executable,
             "-m",
-            "fastcs_ethercat.cli.sim",
+            "fastcs_ethercat.cli.sim_main",
             "--chain",
             str(chain),
             "--host",

@@ -3,7 +3,8 @@
 The freshly generated terminal brings the facts (PDOs, types, groups, CoE
 dictionary, identity); the old file brings the choices: `selected` flags of
 symbols, CoE objects and their sub-indices, `selected_pdo_group`, the
-oversampling factor and `fastcs_name`s (renaming an attribute renames PVs).
+oversampling factor, `fastcs_name`s (renaming an attribute renames PVs) and
+a member's engineering-unit and severity overrides (`MEMBER_CHOICES`).
 A choice that no longer fits (its group is gone, its symbol moved out of the
 selected group) falls back to the generated default and is named in the
 report.
@@ -18,6 +19,7 @@ from typing import Any
 
 from fastcs_ethercat.terminals.checks import check_terminal
 from fastcs_ethercat.terminals.model import (
+    MEMBER_CHOICES,
     CoeObject,
     SymbolNode,
     TerminalType,
@@ -96,7 +98,8 @@ def _facts(node: SymbolNode) -> dict[str, Any]:
     """A node's ESI facts: everything but the engineer's choices."""
     data = node.model_dump(mode="json", exclude={"selected", "fastcs_name"})
     for member in data["members"]:
-        member.pop("fastcs_name")
+        for choice in ("fastcs_name", *MEMBER_CHOICES):
+            member.pop(choice)
     return data
 
 
@@ -263,14 +266,33 @@ def _keep_symbol_choices(
             if old_groups and old.selected_pdo_group not in old_groups:
                 node.selected = True  # it was off only for being in another group
         _keep_fastcs_name(node, before, taken, report)
-        members_by_name = {m.name: m.fastcs_name for m in before.members}
-        member_names = {m.fastcs_name for m in node.members}
-        for member in node.members:
-            wanted = members_by_name.get(member.name)
-            if wanted and wanted != member.fastcs_name and wanted not in member_names:
-                member_names.discard(member.fastcs_name)
-                member.fastcs_name = wanted
-                member_names.add(wanted)
+        _keep_member_choices(node, before, report)
+
+
+def _keep_member_choices(
+    node: SymbolNode, before: SymbolNode, report: ChangeReport
+) -> None:
+    """Members keep their fastcs_name and overrides, matched by ESI name."""
+    old_members = {m.name: m for m in before.members}
+    member_names = {m.fastcs_name for m in node.members}
+    for member in node.members:
+        old = old_members.pop(member.name, None)
+        if old is None:
+            continue
+        for choice in MEMBER_CHOICES:
+            setattr(member, choice, getattr(old, choice))
+        wanted = old.fastcs_name
+        if wanted != member.fastcs_name and wanted not in member_names:
+            member_names.discard(member.fastcs_name)
+            member.fastcs_name = wanted
+            member_names.add(wanted)
+    for old in old_members.values():
+        kept = [c for c in MEMBER_CHOICES if getattr(old, c) is not None]
+        if kept:
+            report.choices.append(
+                f"{_symbol_label(node)} member {old.name!r} is gone, with its "
+                f"{', '.join(kept)}"
+            )
 
 
 def _keep_fastcs_name(

@@ -2,9 +2,10 @@
 
 A file (`terminals/EL3104.yaml`) holds one mapping whose key is the terminal
 type. Everything is generated from the vendor's ESI XML; engineers edit only
-the `selected` flags, `selected_pdo_group`, `oversampling.selected_factor`
-and `fastcs_name`s. Numbers that engineers know in hex (identity, PDO
-indices, CoE indices) are written in hex and load back as ints.
+the `selected` flags, `selected_pdo_group`, `oversampling.selected_factor`,
+`fastcs_name`s and a member's engineering units and alarm severity. Numbers
+that engineers know in hex (identity, PDO indices, CoE indices) are written
+in hex and load back as ints.
 
 ```yaml
 # yaml-language-server: $schema=schema.json
@@ -50,7 +51,9 @@ EL3104:
       bit_offset: 16
       bit_size: 16
       coe: ['0x6000:11', '0x6010:11', '0x6020:11', '0x6030:11']
-      dscale: +/-10
+      dscale: +/-10                # served in volts: 10 V / 32767 per count
+      # unit: mV                   # overrides (terminals units): scale,
+      # scale: 0.30518             #   offset, unit, precision
   - name_template: AI Compact Channel {channel}
     ...
   coe_objects:
@@ -123,6 +126,13 @@ Meaning, for the simulator and the IOC:
 - `pdo_groups` come from the ESI (`AlternativeSmMapping`, or `Exclude`
   chains); the `is_default` group is what TwinCAT assigns to a new terminal.
   Which PDOs are really active is decided by the live symbol table.
+- A member's value is served in engineering units where its `dscale`
+  says what a count means (`terminals.meaning`), or where the engineer set
+  `scale`, `offset`, `unit` or `precision` (on top of what `dscale` gives);
+  the raw count keeps a PV of its own. A status bit or field carries the
+  alarm severity its name implies while set (`Error` MAJOR, `Underrange`
+  MINOR, ...) unless `severity` (none, minor, major) says otherwise. These
+  five keys are the engineer's: regenerate keeps them.
 - `fastcs_name`s are unique in a terminal (symbols with `{channel}` once
   expanded, CoE objects), members and sub-items unique in their parent.
   Symbol names need not be: some ESI files name several PDOs alike (EL1262,
@@ -134,7 +144,14 @@ from __future__ import annotations
 from collections.abc import Iterator
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, RootModel, StringConstraints
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    RootModel,
+    StringConstraints,
+    field_validator,
+)
 
 from fastcs_ethercat.terminals.names import CHANNEL, expand
 from fastcs_ethercat.terminals.yaml_style import (
@@ -146,6 +163,14 @@ from fastcs_ethercat.terminals.yaml_style import (
 )
 
 Direction = Literal["input", "output"]
+SeverityName = Literal["none", "minor", "major"]
+"""Alarm severity of a status bit or field while it is set."""
+MAX_UNIT_LENGTH = 15
+"""A record's EGU holds 16 bytes with its NUL."""
+UNIT_CHOICES = ("scale", "offset", "unit", "precision")
+"""A member's engineering-unit overrides (`terminals units`)."""
+MEMBER_CHOICES = (*UNIT_CHOICES, "severity")
+"""A member's keys that are the engineer's (regenerate keeps them)."""
 SymbolAccess = Literal["ro", "rw"]
 CoeAccess = Literal["ro", "rw", "wo"]
 
@@ -216,7 +241,45 @@ class SymbolMember(_Model):
     dscale: str | None = Field(
         default=None, description="ESI `DScale` of the value (e.g. +/-10)."
     )
-    unit: str | None = Field(default=None, description="Engineering unit, if any.")
+    scale: float | None = Field(
+        default=None,
+        allow_inf_nan=False,
+        description="Override: engineering value per count (raw * scale + offset).",
+    )
+    offset: float | None = Field(
+        default=None,
+        allow_inf_nan=False,
+        description="Override: engineering value at count 0.",
+    )
+    unit: str | None = Field(
+        default=None,
+        description="Override: engineering unit (EGU, e.g. V, mA, degC).",
+    )
+    precision: int | None = Field(
+        default=None, ge=0, le=15, description="Override: decimals shown (PREC)."
+    )
+    severity: SeverityName | None = Field(
+        default=None,
+        description="Override: alarm severity while the bit or field is set "
+        "(none, minor, major).",
+    )
+
+    @field_validator("scale")
+    @classmethod
+    def _scale_is_not_zero(cls, scale: float | None) -> float | None:
+        if scale == 0:
+            raise ValueError("a scale of 0 maps every count to one value")
+        return scale
+
+    @field_validator("unit")
+    @classmethod
+    def _unit_fits_egu(cls, unit: str | None) -> str | None:
+        if unit is not None and len(unit.encode("utf-8")) > MAX_UNIT_LENGTH:
+            raise ValueError(
+                f"{unit!r} is longer than a record's EGU "
+                f"({MAX_UNIT_LENGTH} bytes in UTF-8)"
+            )
+        return unit
 
     def address(self, position: int) -> tuple[int, int]:
         """(index, subindex) of this entry for the channel at `position`."""
@@ -413,12 +476,15 @@ class TerminalFile(RootModel[dict[str, TerminalType]]):
 
 __all__ = [
     "CHANNEL",
+    "MEMBER_CHOICES",
+    "UNIT_CHOICES",
     "CoeEnumItem",
     "CoeObject",
     "CoeSubItem",
     "Identity",
     "Oversampling",
     "PdoGroup",
+    "SeverityName",
     "SymbolMember",
     "SymbolNode",
     "TerminalFile",

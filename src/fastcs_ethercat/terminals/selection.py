@@ -1,6 +1,7 @@
 """The engineer's choices in a terminal, one function per kind of choice.
 
-The CLI (`select-group`, `select`, `coe`) and the web editor call these same
+The CLI (`select-group`, `select`, `coe`, `units`, `severity`) and the web
+editor call these same
 functions, so a choice made in either gives the same file. Each returns a
 changed copy, checked against the terminal rules; a choice that cannot be
 made raises `SelectionError` with a one-line reason.
@@ -11,8 +12,18 @@ from __future__ import annotations
 import re
 from collections.abc import Sequence
 
+from pydantic import ValidationError
+
 from fastcs_ethercat.terminals.checks import terminal_problems
-from fastcs_ethercat.terminals.model import CoeObject, SymbolNode, TerminalType
+from fastcs_ethercat.terminals.meaning import is_status
+from fastcs_ethercat.terminals.model import (
+    UNIT_CHOICES,
+    CoeObject,
+    SeverityName,
+    SymbolMember,
+    SymbolNode,
+    TerminalType,
+)
 from fastcs_ethercat.terminals.names import CHANNEL, expand
 
 FASTCS_NAME = re.compile(r"^[a-z][a-z0-9_]*(\{channel\}[a-z0-9_]*)*$")
@@ -235,4 +246,78 @@ def rename_coe(terminal: TerminalType, index: int, name: str) -> TerminalType:
         raise SelectionError(f"{name!r} is already the name of another CoE object")
     changed = terminal.model_copy(deep=True)
     _coe_object(changed, index).fastcs_name = name
+    return _checked(changed)
+
+
+def find_member(node: SymbolNode, wanted: str | None, status: bool = False) -> int:
+    """Position of the member named `wanted` (its ESI name, any case, or its
+    fastcs_name) in `node`; without a name, the node's one value (or with
+    `status`, its one status bit or field)."""
+    members = node.members
+    if wanted is None:
+        fitting = [i for i, m in enumerate(members) if is_status(m) == status]
+        if len(fitting) == 1:
+            return fitting[0]
+        raise SelectionError(
+            f"{node.name_template!r} has {len(fitting)} "
+            f"{'status bits' if status else 'values'}; name one with --member "
+            f"({_member_names([members[i] for i in fitting] or members)})"
+        )
+    folded = wanted.casefold()
+    for position, member in enumerate(members):
+        if wanted == member.fastcs_name or folded == member.name.casefold():
+            return position
+    raise SelectionError(
+        f"{node.name_template!r} has no member {wanted!r} "
+        f"(members: {_member_names(members)})"
+    )
+
+
+def _member_names(members: Sequence[SymbolMember]) -> str:
+    return ", ".join(repr(m.name) for m in members) or "none"
+
+
+def set_units(
+    terminal: TerminalType,
+    symbol: str,
+    member: str | None = None,
+    *,
+    scale: float | None = None,
+    offset: float | None = None,
+    unit: str | None = None,
+    precision: int | None = None,
+    reset: bool = False,
+) -> TerminalType:
+    """A copy whose member serves its value with these overrides of what its
+    `dscale` gives (the others kept; `reset` drops all four first)."""
+    changed = terminal.model_copy(deep=True)
+    node = changed.symbol_nodes[find_symbol(changed, symbol)]
+    position = find_member(node, member)
+    target = node.members[position]
+    data = dict(target)  # the fields as they are (a dump would serialise)
+    if reset:
+        data.update(dict.fromkeys(UNIT_CHOICES))
+    wanted = {"scale": scale, "offset": offset, "unit": unit, "precision": precision}
+    data.update({key: value for key, value in wanted.items() if value is not None})
+    try:
+        updated = SymbolMember.model_validate(data)
+    except ValidationError as error:
+        first = error.errors()[0]
+        where = ".".join(str(part) for part in first["loc"])
+        raise SelectionError(f"{where}: {first['msg']}") from None
+    node.members[position] = updated
+    return _checked(changed)
+
+
+def set_severity(
+    terminal: TerminalType,
+    symbol: str,
+    member: str | None,
+    severity: SeverityName | None,
+) -> TerminalType:
+    """A copy whose member raises `severity` while set (None: what its name
+    implies again)."""
+    changed = terminal.model_copy(deep=True)
+    node = changed.symbol_nodes[find_symbol(changed, symbol)]
+    node.members[find_member(node, member, status=True)].severity = severity
     return _checked(changed)

@@ -10,7 +10,17 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from fastcs_ethercat.terminals.model import Direction, SymbolAccess, TerminalType
+from fastcs_ethercat.terminals.meaning import (
+    Scaling,
+    member_scaling,
+    member_severity,
+)
+from fastcs_ethercat.terminals.model import (
+    Direction,
+    SeverityName,
+    SymbolAccess,
+    TerminalType,
+)
 from fastcs_ethercat.terminals.names import expand
 
 
@@ -28,6 +38,10 @@ class ExpandedMember:
     coe_index: int | None
     coe_subindex: int | None
     comment: str | None
+    scaling: Scaling | None = None
+    """What the value is served as (`terminals.meaning`); None: raw."""
+    severity: SeverityName = "none"
+    """Alarm severity while the bit or field is set."""
 
     @property
     def path(self) -> tuple[str, ...]:
@@ -94,6 +108,8 @@ def expanded_symbols(
                         coe_index=index,
                         coe_subindex=subindex,
                         comment=member.comment,
+                        scaling=member_scaling(member),
+                        severity=member_severity(member, node.direction),
                     )
                 )
             result.append(

@@ -32,7 +32,7 @@ from typing import Any, Final
 
 from fastcs.attributes import AttrR, AttrW
 from fastcs.controllers import Controller
-from fastcs.datatypes import Bool, Int, String
+from fastcs.datatypes import Int, String
 from fastcs.methods import scan
 
 from fastcs_ethercat.ads.client import (
@@ -61,12 +61,18 @@ from fastcs_ethercat.ioc.alarms import Status
 from fastcs_ethercat.ioc.attributes import (
     PointIO,
     attribute_for_point,
+    engineering_value,
     from_device,
 )
 from fastcs_ethercat.ioc.connection import Connection
 from fastcs_ethercat.ioc.controllers.post import post
-from fastcs_ethercat.ioc.controllers.terminal import TerminalController
-from fastcs_ethercat.ioc.datatypes import IntegralFloat
+from fastcs_ethercat.ioc.controllers.terminal import (
+    AL_STATE_SEVERITIES,
+    AlStateView,
+    TerminalController,
+    al_state_view,
+)
+from fastcs_ethercat.ioc.datatypes import AlarmBool, IntegralFloat, alarm_enum
 from fastcs_ethercat.ioc.handles import PointHandles, acquire, release
 from fastcs_ethercat.ioc.health import COMM, READ, Health
 from fastcs_ethercat.ioc.plan import MasterPlan, Point, TerminalPlan
@@ -195,6 +201,10 @@ class MasterController(Controller):
         }
         self.attributes_by_key: dict[str, AttrR[Any, Any]] = {}
         """Every attribute a polled point feeds, terminals' included, by key."""
+        self.shown_by_key: dict[str, AttrR[Any, Any]] = {}
+        """Every attribute that shows a point to clients, by key: a scaled
+        point's engineering value (fed through its raw twin), which clients
+        write and whose setpoints show the writes."""
         self.groups: list[PollGroup] = []
         self.points: dict[str, Point] = {}
         """Point key -> the point as the target has it now (offsets move)."""
@@ -215,14 +225,19 @@ class MasterController(Controller):
             "NetId": AttrR(
                 String(), initial_value=plan.net_id, description="Master's AMS NetId"
             ),
-            "State": AttrR(Int(), description="EtherCAT master state"),
+            "State": AttrR(
+                alarm_enum(AlStateView, AL_STATE_SEVERITIES),
+                description="EtherCAT master state",
+            ),
             "SlaveCount": AttrR(Int(), description="Slaves the master sees"),
             "ExpectedSlaves": AttrR(
                 Int(),
                 initial_value=len(plan.terminals),
                 description="Slaves found at start",
             ),
-            "Online": AttrR(Bool(), description="Master diagnostics answer"),
+            "Online": AttrR(
+                AlarmBool(severities=(2, 0)), description="Master diagnostics answer"
+            ),
             "CyclicFrames": AttrR(IntegralFloat(), description="Cyclic frames"),
             "CyclicLost": AttrR(IntegralFloat(), description="Lost cyclic frames"),
             "AcyclicFrames": AttrR(IntegralFloat(), description="Acyclic frames"),
@@ -241,12 +256,13 @@ class MasterController(Controller):
                 continue
             self.add_attribute(leaves[point.symbol], attr)
             assert isinstance(attr, AttrR)
-            self.attributes_by_key[point.key] = attr
+            self.attributes_by_key[point.key] = self.shown_by_key[point.key] = attr
 
     def add_terminal(self, terminal: TerminalController) -> None:
         """A terminal below this master (added to its parent by the builder)."""
         self.terminals[terminal.plan.slave.address] = terminal
         self.attributes_by_key.update(terminal.by_key)
+        self.shown_by_key.update(terminal.shown_by_key)
 
     # -- polling -------------------------------------------------------------------
 
@@ -312,7 +328,7 @@ class MasterController(Controller):
         self._generation += 1
         self._unreadable(served)
         self.setpoints.follow(
-            a for k, a in self.attributes_by_key.items()
+            a for k, a in self.shown_by_key.items()
             if k in self.points and self.points[k].writable and isinstance(a, AttrW)
         )  # fmt: skip
         for group in self.groups:
@@ -434,8 +450,8 @@ class MasterController(Controller):
         handle. Whatever did not reach the PLC is logged and raised (the
         client's put fails) and its setpoints say so (`Setpoints`).
         """
-        attr = self.attributes_by_key.get(point.key)
-        shown = _fastcs_value(attr, value)
+        attr = self.shown_by_key.get(point.key)
+        shown = _fastcs_value(attr, engineering_value(point, value))
         try:
             await self._deliver(point, value)
         except OutcomeUnknownError as error:
@@ -524,8 +540,8 @@ class MasterController(Controller):
         frames = status.frames
         a = self.attrs
         fresh = self.health.post
-        await post(a["Online"], True)
-        await fresh(a["State"], status.state)
+        await fresh(a["Online"], True)
+        await fresh(a["State"], master_state_view(status.state))
         await fresh(a["SlaveCount"], status.slave_count)
         await fresh(a["CyclicFrames"], frames.cyclic_sent)
         await fresh(a["CyclicLost"], frames.cyclic_lost)
@@ -558,9 +574,14 @@ class MasterController(Controller):
 
     async def _safe_post(self, leaf: str, value: Any) -> None:
         try:
-            await post(self.attrs[leaf], value)
+            await self.health.post(self.attrs[leaf], value)
         except Exception:
             self.failures += 1
+
+
+def master_state_view(state: int) -> AlStateView:
+    """The master's state word as the states a slave reports (OP ...)."""
+    return al_state_view(SlaveState(state & 0xFF))
 
 
 class OutcomeUnknownError(TimeoutError):

@@ -24,9 +24,10 @@ from typing import Any, Final
 
 from fastcs.attributes import AttrR
 from fastcs.controllers import Controller
-from fastcs.datatypes import Bool, Int, String
+from fastcs.datatypes import Int, String
 from fastcs.methods import scan
 
+from fastcs_ethercat import __version__
 from fastcs_ethercat.ioc.alarms import Status
 from fastcs_ethercat.ioc.boot import PlanSource
 from fastcs_ethercat.ioc.chains import remember
@@ -42,7 +43,7 @@ from fastcs_ethercat.ioc.controllers.tree import (
     pv_requests,
     slave_path,
 )
-from fastcs_ethercat.ioc.datatypes import ExactFloat
+from fastcs_ethercat.ioc.datatypes import AlarmBool, ExactFloat, alarm_enum
 from fastcs_ethercat.ioc.deadband import Deadbands
 from fastcs_ethercat.ioc.health import COMM, Health
 from fastcs_ethercat.ioc.naming import (
@@ -53,8 +54,10 @@ from fastcs_ethercat.ioc.naming import (
     plan_pv_names,
 )
 from fastcs_ethercat.ioc.plan import MasterPlan, SystemPlan, TerminalPlan
+from fastcs_ethercat.ioc.process_stats import ProcessStats
 from fastcs_ethercat.ioc.publish import Publisher
 from fastcs_ethercat.ioc.reconnect import Reconnection
+from fastcs_ethercat.ioc.supervisor import LinkState
 from fastcs_ethercat.logs import log_at_most
 from fastcs_ethercat.terminals.registry import TerminalRegistry
 
@@ -65,6 +68,22 @@ WARNINGS_SHOWN: Final = 15
 """Start-up warnings logged before one line says how many more there are."""
 NAMES_SHOWN: Final = 3
 """Terminals a folded warning names before it counts the rest."""
+PROCESS_LEAVES: Final = (
+    "Version",
+    "StartTime",
+    "Uptime",
+    "CpuLoad",
+    "MemoryUsed",
+    "PollOverruns",
+)
+"""The IOC process's health (what devIocStats gives a C IOC)."""
+LINK_SEVERITIES: Final = {
+    LinkState.CONNECTED: 0,
+    LinkState.RESYNCING: 1,
+    LinkState.DISCONNECTED: 2,
+    LinkState.STOPPED: 2,
+}
+"""`ConnectionState` as an alarm: a resync is MINOR, no target MAJOR."""
 ROOT_LEAVES: Final = (
     "Connected",
     "Target",
@@ -87,6 +106,7 @@ ROOT_LEAVES: Final = (
     "LastRecovery",
     "ChainChanges",
     "InvalidPvs",
+    *PROCESS_LEAVES,
 )
 
 
@@ -135,6 +155,7 @@ class RootController(Controller):
         self.pv_count = 0
         self.unserved = 0
         self.rates = RateTracker()
+        self.process = ProcessStats()
         self._plan: SystemPlan | None = None
         self._names: PvNames | None = None
         self._reconnection: Reconnection | None = None
@@ -189,7 +210,7 @@ class RootController(Controller):
         )
         for shortening in names.shortened:  # thousands with every CoE object
             logger.debug("PV name shortened: %s", shortening)
-        self.attrs = _root_attributes(plan, config.target)
+        self.attrs = _root_attributes(plan, config.target, self.process)
         for leaf, attr in self.attrs.items():
             self.add_attribute(names.leaves[PvRequest((), leaf)], attr)
         self.masters = build_masters(
@@ -318,8 +339,8 @@ class RootController(Controller):
         """Publish a change of the link at once, not at the next scan."""
         try:
             a = self.attrs
-            await post(a["Connected"], state == "CONNECTED")
-            await post(a["ConnectionState"], state)
+            await self.health.post(a["Connected"], state == "CONNECTED")
+            await self.health.post(a["ConnectionState"], state)
             if error:
                 await post(a["LastError"], error[:200])
         except Exception:  # never stop the caller (the supervisor)
@@ -352,7 +373,7 @@ class RootController(Controller):
         a = self.attrs
         await post(a["PvCount"], self.pv_count)
         await post(a["Unserved"], self.unserved)
-        await post(
+        await self.health.post(
             a["Connected"],
             connected and bool(stats) and all(s.cycles > 0 for s in stats),
         )
@@ -366,7 +387,7 @@ class RootController(Controller):
         errors_total = sum(s.errors + s.item_errors for s in stats)
         await post(a["PollErrors"], min(errors_total, 2**31 - 1))
         await post(a["LastError"], last_error[:200])
-        await post(a["ConnectionState"], str(link.state))
+        await self.health.post(a["ConnectionState"], str(link.state))
         await post(a["Reconnects"], min(link.reconnects + link.resyncs, 2**31 - 1))
         await post(a["LastRecovery"], link.last_recovery_s)
         await post(a["ChainChanges"], self.reconnection.chain_changes[:200])
@@ -375,6 +396,11 @@ class RootController(Controller):
         await post(a["SymbolVersion"], live.symbol_version)
         await post(a["DeviceName"], live.device_name)
         await post(a["DeviceVersion"], live.device_version)
+        sample = self.process.sample()
+        await post(a["Uptime"], sample.uptime_s)
+        await post(a["CpuLoad"], sample.cpu_percent)
+        await post(a["MemoryUsed"], sample.memory_mib)
+        await post(a["PollOverruns"], min(sum(s.overruns for s in stats), 2**31 - 1))
 
 
 def fold_by_terminal(warnings: Sequence[str], terminals: Collection[str]) -> list[str]:
@@ -408,10 +434,14 @@ def fold_by_terminal(warnings: Sequence[str], terminals: Collection[str]) -> lis
     return folded
 
 
-def _root_attributes(plan: SystemPlan, target: str) -> dict[str, AttrR[Any, Any]]:
+def _root_attributes(
+    plan: SystemPlan, target: str, process: ProcessStats
+) -> dict[str, AttrR[Any, Any]]:
     terminals = sum(len(master.terminals) for master in plan.masters)
     return {
-        "Connected": AttrR(Bool(), description="Polling the target"),
+        "Connected": AttrR(
+            AlarmBool(severities=(2, 0)), description="Polling the target"
+        ),
         "Target": _fixed(String(), target, "ADS host[:port]"),
         "NetId": _fixed(String(), plan.net_id, "AMS NetId of the target"),
         "DeviceName": _fixed(String(), plan.device_name, "TwinCAT device name"),
@@ -435,13 +465,31 @@ def _root_attributes(plan: SystemPlan, target: str) -> dict[str, AttrR[Any, Any]
         ),
         "PollErrors": AttrR(Int(), description="Failed poll reads"),
         "LastError": AttrR(String(), description="Last ADS error"),
-        "ConnectionState": AttrR(String(), description="Link to the target"),
+        "ConnectionState": AttrR(
+            alarm_enum(LinkState, LINK_SEVERITIES),
+            initial_value=LinkState.DISCONNECTED,
+            description="Link to the target",
+        ),
         "Reconnects": AttrR(Int(), description="Reconnects and resyncs"),
         "LastRecovery": AttrR(
             ExactFloat(units="s", prec=2), description="Last outage, loss to poll"
         ),
         "ChainChanges": AttrR(String(), description="Chain change at reconnect"),
         "InvalidPvs": AttrR(Int(), description="Attributes in INVALID alarm"),
+        "Version": _fixed(String(), __version__, "fastcs-ethercat version"),
+        "StartTime": _fixed(String(), process.start_text(), "IOC start (local time)"),
+        "Uptime": AttrR(
+            ExactFloat(units="s", prec=0), description="Seconds since IOC start"
+        ),
+        "CpuLoad": AttrR(
+            ExactFloat(units="%", prec=1), description="IOC CPU, % of one core"
+        ),
+        "MemoryUsed": AttrR(
+            ExactFloat(units="MiB", prec=1), description="IOC resident memory"
+        ),
+        "PollOverruns": AttrR(
+            Int(), description="Poll cycles longer than their period"
+        ),
     }
 
 

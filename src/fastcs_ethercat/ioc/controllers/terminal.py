@@ -15,7 +15,7 @@ from typing import Any, Final
 
 from fastcs.attributes import Attribute, AttrR
 from fastcs.controllers import Controller
-from fastcs.datatypes import Bool, Enum, Int, String
+from fastcs.datatypes import Int, String
 from fastcs.methods import Command
 
 from fastcs_ethercat.ads.ethercat import AlState, AlStateFlag, SlaveState
@@ -27,9 +27,13 @@ from fastcs_ethercat.ioc.attributes import (
     attribute_for_coe,
     attribute_for_point,
     from_device,
+    raw_twin,
+    to_engineering,
 )
+from fastcs_ethercat.ioc.datatypes import AlarmBool, alarm_enum
 from fastcs_ethercat.ioc.health import COMM, Health
 from fastcs_ethercat.ioc.plan import CoePoint, Point, TerminalPlan
+from fastcs_ethercat.terminals.meaning import RAW_SUFFIX
 
 DIAGNOSTIC_LEAVES: Final = (
     "AlState",
@@ -59,6 +63,11 @@ def coe_leaf(attribute: str) -> str:
     return COE_LEAF_PREFIX + attribute
 
 
+def raw_leaf(point: Point) -> str:
+    """The leaf of a scaled point's raw twin: `...Value Raw` -> `...ValueRaw`."""
+    return point.symbol + RAW_SUFFIX
+
+
 class AlStateView(enum.Enum):
     """The AL state as an mbbi an operator can read with plain `caget`:
     the state, with `_ERR` when the slave flags an error."""
@@ -74,6 +83,12 @@ class AlStateView(enum.Enum):
     BOOT_ERR = "BOOT_ERR"
     SAFEOP_ERR = "SAFEOP_ERR"
     OP_ERR = "OP_ERR"
+
+
+AL_STATE_SEVERITIES: Final = {
+    state: 0 if state is AlStateView.OP else 2 for state in AlStateView
+}
+"""A slave out of OP (or in OP with its error flag) is MAJOR."""
 
 
 def al_state_view(state: SlaveState) -> AlStateView:
@@ -130,7 +145,11 @@ class TerminalController(Controller):
         if coe_io is not None:
             coe_io.read_back = self.read_coe
         self.by_key: dict[str, AttrR[Any, Any]] = {}
-        """Point key -> the attribute it feeds (the master posts to it)."""
+        """Point key -> the attribute it feeds (the master posts to it): a
+        scaled point's raw twin, which its engineering value follows."""
+        self.shown_by_key: dict[str, AttrR[Any, Any]] = {}
+        """Point key -> the attribute that shows its value (a scaled point's
+        engineering value): what clients write, whose setpoint shows writes."""
         self.coe_attributes: list[AttrR[Any, Any]] = []
         self.parts: dict[str, Controller] = {}
         """Its channels and CoE objects by segment, in the order first used."""
@@ -141,10 +160,13 @@ class TerminalController(Controller):
         for coe in plan.coe if coe_io is not None else ():
             self._add_coe(coe, read_only)
         self.diag: dict[str, AttrR[Any, Any]] = {
-            "AlState": AttrR(Enum(AlStateView), description="AL state"),
+            "AlState": AttrR(
+                alarm_enum(AlStateView, AL_STATE_SEVERITIES), description="AL state"
+            ),
             "AlStateText": AttrR(String(), description="AL state and flags"),
             "LinkOk": AttrR(
-                Bool(), description="Own link fine (ports B-D: neighbours)"
+                AlarmBool(severities=(2, 0)),
+                description="Own link fine (ports B-D: neighbours)",
             ),
             "LinkState": AttrR(Int(min=0, max=255), description="Link bits"),
             "CrcErrors": AttrR(Int(), description="CRC errors, all ports"),
@@ -168,10 +190,15 @@ class TerminalController(Controller):
         except ValueError as error:
             self.unserved.append((point.symbol, str(error)))
             return
+        assert isinstance(attr, AttrR)
         channel = f"Channel {point.channel}" if point.channel is not None else ""
         self._place(point.symbol, attr, channel)
-        assert isinstance(attr, AttrR)
-        self.by_key[point.key] = attr
+        self.by_key[point.key] = self.shown_by_key[point.key] = attr
+        raw = raw_twin(point)
+        if raw is not None and point.scaling is not None:  # the poller feeds raw
+            self._place(raw_leaf(point), raw, channel)
+            self.health.follow(raw, attr, to_engineering(point.scaling))
+            self.by_key[point.key] = raw
 
     def _add_coe(self, coe: CoePoint, read_only: bool) -> None:
         source = f"CoE {coe.index:04X}:{coe.subindex:02X} {coe.attribute}"

@@ -21,7 +21,7 @@ from typing import Any
 from fastcs.attributes import Attribute, AttrR, AttrRW, AttrW
 from fastcs.controllers import BaseController, Controller
 
-from fastcs_ethercat.ioc.attributes import CoeIO, CoeRef, PointRef
+from fastcs_ethercat.ioc.attributes import CoeIO, CoeRef, PointRef, converts
 from fastcs_ethercat.ioc.coe import SlaveCoe
 from fastcs_ethercat.ioc.connection import Connection
 from fastcs_ethercat.ioc.controllers.master import MASTER_LEAVES, MasterController
@@ -32,7 +32,9 @@ from fastcs_ethercat.ioc.controllers.terminal import (
     PvPlace,
     TerminalController,
     coe_leaf,
+    raw_leaf,
 )
+from fastcs_ethercat.ioc.datatypes import type_label
 from fastcs_ethercat.ioc.health import Health
 from fastcs_ethercat.ioc.naming import (
     RBV_SUFFIX,
@@ -42,6 +44,7 @@ from fastcs_ethercat.ioc.naming import (
     PvRequest,
     coe_request,
     point_request,
+    twin_request,
 )
 from fastcs_ethercat.ioc.plan import (
     CoePoint,
@@ -49,6 +52,7 @@ from fastcs_ethercat.ioc.plan import (
     SystemPlan,
     TerminalPlan,
 )
+from fastcs_ethercat.terminals.meaning import RAW_SUFFIX
 
 
 @dataclass(frozen=True)
@@ -83,9 +87,15 @@ def terminal_requests(
     path: tuple[Node, ...], terminal: TerminalPlan
 ) -> dict[str, PvRequest]:
     """Every attribute of a terminal controller by its leaf (a point's symbol,
-    a diagnostic, `Coe <attribute>`): values under their channel, CoE values
-    under their object."""
-    requests = {point.symbol: point_request(path, point) for point in terminal.points}
+    a scaled point's raw twin, a diagnostic, `Coe <attribute>`): values
+    under their channel (a raw twin beside its value), CoE values under
+    their object."""
+    requests: dict[str, PvRequest] = {}
+    for point in terminal.points:
+        request = requests[point.symbol] = point_request(path, point)
+        if converts(point):
+            leaf = raw_leaf(point)
+            requests[leaf] = twin_request(request, leaf, RAW_SUFFIX)
     requests |= {leaf: PvRequest(path, leaf) for leaf in DIAGNOSTIC_LEAVES}
     for coe in terminal.coe:
         leaf = coe_leaf(coe.attribute)
@@ -228,7 +238,7 @@ def _walk(controller: BaseController) -> Iterator[PvEntry]:
 
 
 def _entries(pv: str, attr: Attribute) -> Iterator[PvEntry]:
-    datatype = type(attr.datatype).__name__
+    datatype = type_label(attr.datatype)
     ref = attr.io_ref if attr.has_io_ref() else None
     if isinstance(ref, PointRef):
         source = ref.point.symbol

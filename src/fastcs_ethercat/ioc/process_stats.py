@@ -1,0 +1,71 @@
+"""The IOC process's own health: when it started, how long ago, CPU, memory.
+
+What devIocStats gives a C IOC, for the root controller's PVs (served on CA
+and PVA alike, in PVI, the screens and `--list-pvs`). softioc ships
+devIocStats' records, but only as CA records outside FastCS's tree (no PVA,
+no PVI, no screen, not in the PV lists), and its template brings writable
+records too (`SYSRESET` restarts the IOC on one caput, `*_UPD_TIME` change
+its scan periods), which a read-only IOC must not serve.
+"""
+
+from __future__ import annotations
+
+import os
+import resource
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Final
+
+STATM: Final = Path("/proc/self/statm")
+"""Linux: the process's pages; the second field is its resident set."""
+MIB: Final = 1024 * 1024
+
+
+@dataclass(frozen=True)
+class ProcessSample:
+    """One reading of the process."""
+
+    uptime_s: float
+    cpu_percent: float
+    """Of one core since the previous reading (100 % = one core busy)."""
+    memory_mib: float
+    """Resident set now (Linux), else the peak resident set."""
+
+
+@dataclass
+class ProcessStats:
+    """Reads the process's uptime, CPU and memory; CPU as a rate between
+    consecutive readings."""
+
+    started: float = field(default_factory=time.time)
+    """time.time() at start (the IOC's start time)."""
+    _wall: float = field(default_factory=time.monotonic)
+    _cpu: float = field(default_factory=time.process_time)
+    _started_monotonic: float = field(default_factory=time.monotonic)
+
+    def sample(self) -> ProcessSample:
+        wall, cpu = time.monotonic(), time.process_time()
+        elapsed = wall - self._wall
+        percent = 100.0 * (cpu - self._cpu) / elapsed if elapsed > 0 else 0.0
+        self._wall, self._cpu = wall, cpu
+        return ProcessSample(
+            uptime_s=wall - self._started_monotonic,
+            cpu_percent=max(percent, 0.0),
+            memory_mib=resident_mib(),
+        )
+
+    def start_text(self) -> str:
+        """The start time as operators read it: `2026-12-01 16:02:50`."""
+        return time.strftime("%Y-%m-%d %H:%M:%S", time.localtime(self.started))
+
+
+def resident_mib() -> float:
+    """The process's resident memory in MiB."""
+    try:
+        pages = int(STATM.read_text().split()[1])
+        return pages * os.sysconf("SC_PAGE_SIZE") / MIB
+    except (OSError, ValueError, IndexError):
+        peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+        return peak / MIB if sys.platform == "darwin" else peak / 1024

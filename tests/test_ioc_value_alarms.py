@@ -1,0 +1,129 @@
+"""Values that carry their own alarm, and values made from another one.
+
+In process, on FastCS's own PVA PVs (p4p SharedPVs, no network): a status
+bit's severity rides on its value's update, a cleared alarm goes back to the
+value's own severity, and a scaled value follows its raw count in value,
+time and alarm (`Health.follow`).
+"""
+
+from __future__ import annotations
+
+import enum
+from typing import Any
+
+import pytest
+from fastcs.attributes import AttrR, AttrRW
+from fastcs.datatypes import Bool, Int
+from fastcs.transports.epics.pva._pv_handlers import make_shared_read_pv
+
+from fastcs_ethercat.ioc.alarms import NO_ALARM, PvaStatus, Severity, Status
+from fastcs_ethercat.ioc.alarms import value_alarm as alarm_of_value
+from fastcs_ethercat.ioc.attributes import to_engineering
+from fastcs_ethercat.ioc.datatypes import (
+    AlarmBool,
+    AlarmEnum,
+    AlarmInt,
+    ExactFloat,
+    alarm_enum,
+    severity_table,
+)
+from fastcs_ethercat.ioc.health import COMM, READ, Health
+from fastcs_ethercat.terminals.meaning import Scaling
+
+
+class State(enum.Enum):
+    INIT = "INIT"
+    OP = "OP"
+
+
+def test_alarm_datatypes_look_up_their_severity() -> None:
+    error = AlarmBool(severities=(0, 2))
+    limit = AlarmInt(min=0, max=3, set_severity=1)
+    state = alarm_enum(State, {State.INIT: 2})
+
+    assert [error.alarm_severity(v) for v in (False, True)] == [0, 2]
+    assert [limit.alarm_severity(v) for v in (0, 1, 2, 3)] == [0, 1, 1, 1]
+    assert isinstance(state, AlarmEnum)
+    assert [state.alarm_severity(v) for v in State] == [2, 0]
+    assert severity_table(Bool()) is None
+    assert severity_table(error) is not None
+    assert isinstance(error, Bool) and isinstance(limit, Int)  # FastCS records
+
+
+def _posted(pv: Any) -> dict[str, Any]:
+    """What the PV holds now (a p4p Value, or one p4p unwrapped)."""
+    current = pv.current()
+    return getattr(current, "raw", current).todict()
+
+
+def _alarm(pv: Any) -> dict[str, Any]:
+    return _posted(pv)["alarm"]
+
+
+async def test_a_set_error_bit_is_published_major_and_clears_with_it() -> None:
+    health = Health()
+    health.publisher.start()
+    error = AttrR(AlarmBool(severities=(0, 2)))
+    pv = make_shared_read_pv(error)
+
+    await health.post(error, True, 100.0)
+    raised = _alarm(pv)
+    stamp = _posted(pv)["timeStamp"]["secondsPastEpoch"]
+    await health.post(error, False, 101.0)
+    cleared = _alarm(pv)
+
+    assert raised["severity"] == Severity.MAJOR
+    assert raised["status"] == PvaStatus.DEVICE  # STATE, as QSRV groups it
+    assert stamp == 100  # the value's own update, at the read's time
+    assert cleared["severity"] == Severity.NO_ALARM
+
+
+async def test_an_outage_ends_in_the_values_own_alarm_not_in_no_alarm() -> None:
+    health = Health()
+    health.publisher.start()
+    error = AttrR(AlarmBool(severities=(0, 2)))
+    pv = make_shared_read_pv(error)
+    await health.post(error, True, 1.0)
+
+    health.mark_invalid([error], COMM, Status.COMM, "PLC lost")
+    lost = _alarm(pv)
+    await health.mark_ok([error], COMM)
+    back = _alarm(pv)
+
+    assert lost["severity"] == Severity.INVALID
+    assert back["severity"] == Severity.MAJOR  # the bit is still set
+    assert alarm_of_value(error).severity is Severity.MAJOR
+    assert alarm_of_value(AttrR(Int())) == NO_ALARM
+
+
+async def test_a_scaled_value_follows_its_raw_count() -> None:
+    health = Health()
+    health.publisher.start()
+    raw = AttrR(Int(min=-32768, max=32767))
+    volts = AttrRW(ExactFloat(units="V", prec=4, min=-10.0003, max=10.0))
+    volts_pv = make_shared_read_pv(volts)
+    health.follow(raw, volts, to_engineering(Scaling(10 / 32767, 0.0, "V")))
+
+    await health.post(raw, 16384, 50.0)
+    first = (raw.get(), volts.get())
+    stamp = _posted(volts_pv)["timeStamp"]["secondsPastEpoch"]
+    health.mark_invalid([raw], READ, Status.READ, "0x705")
+    both_invalid = (health.is_invalid(raw), health.is_invalid(volts))
+    alarmed = _alarm(volts_pv)["severity"]
+    await health.post(raw, -32767, 51.0)  # a fresh value ends a READ alarm
+    after = (raw.get(), volts.get(), health.invalid_count)
+    seen: list[tuple[Any, Any]] = []
+
+    async def watch(attribute: Any, value: Any) -> None:  # as ioc.setpoints does
+        seen.append((attribute, value))
+
+    health.watch_value(volts, watch)  # an output's setpoint waits for the PLC
+    await health.post(raw, 0, 52.0)
+
+    assert first[0] == 16384
+    assert first[1] == pytest.approx(5.0002, abs=1e-4)
+    assert stamp == 50
+    assert both_invalid == (True, True) and alarmed == Severity.INVALID
+    assert after[:2] == (-32767, pytest.approx(-10.0))
+    assert after[2] == 0
+    assert seen == [(volts, 0.0)]  # the PLC's value, in volts
