@@ -133,8 +133,8 @@ async def test_a_setpoint_takes_the_plcs_value_from_a_poll_cycles_batch() -> Non
 async def test_a_resync_does_not_turn_a_refused_write_into_waiting() -> None:
     """A put refused while the IOC resyncs, then the resync's `follow` before
     the put's answer reaches the client (seen in the online-change test): the
-    setpoint keeps INVALID/WRITE (the client must see the put fail, not UDF),
-    until the PLC's value arrives, which it then shows."""
+    setpoint keeps INVALID/WRITE (the client must see the put fail, not UDF
+    nor the first readback's value without an alarm) until a write succeeds."""
     output, health = Output(), Health()
     setpoints = Setpoints(health)
     setpoints.follow([output.attribute])
@@ -146,8 +146,13 @@ async def test_a_resync_does_not_turn_a_refused_write_into_waiting() -> None:
     await health.post(output.attribute, 6)  # the first readback after it
     await _settled()
 
+    after_readback = output.shown()[1]
+    await setpoints.written(output.attribute, 7)
+    await _settled()
+
     assert answered == (9, 3, "WRITE: not written: target away")
-    assert output.shown()[1] == (6, 0, "")
+    assert after_readback == (9, 3, "WRITE: not written: target away")
+    assert output.shown()[1] == (7, 0, "")
 
 
 async def test_an_unknown_outcome_waits_for_the_readback() -> None:

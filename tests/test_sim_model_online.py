@@ -65,6 +65,22 @@ def test_old_handles_fail_new_ones_work() -> None:
     )
 
 
+def test_a_handle_stays_invalid_when_the_symbol_version_wraps() -> None:
+    """The version is one byte and comes back after 255 changes; a handle
+    taken before them must not come back to life with it."""
+    target = demo_target()
+    probe = device(target)
+    name = f"{EL4134}.AO Output Channel 4"
+    old = probe.handle_of(name)
+    first = version(probe)
+    target.online_change()
+    for each in target.devices:  # as after 255 changes: the byte wrapped
+        each.version = first
+    assert version(probe) == first
+    stale = probe.write(IndexGroup.SYM_VALUE_BY_HANDLE, old, b"\1\0")
+    assert stale.result == AdsReturnCode.DEVICE_SYMBOL_VERSION_INVALID
+
+
 def test_upload_reflects_the_new_offsets() -> None:
     target = demo_target()
     probe = device(target)

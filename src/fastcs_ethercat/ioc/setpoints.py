@@ -8,17 +8,18 @@ without an alarm, a value the PLC does not hold:
   (whichever protocol wrote it), no alarm of their own;
 - a write that did not (refused, target away, an invalid handle, a value the
   type cannot hold): both show the value asked for, INVALID/WRITE, until a
-  later write succeeds or the setpoint follows the PLC again;
+  later write succeeds (the readback shows what the PLC holds meanwhile);
 - a write that timed out may have landed: the write path reads it back at
   once (the readback decides: written or failed); if that is not answered
   either, INVALID/TIMEOUT ("outcome unknown") until the next readback, which
   the setpoint then shows;
 - at start, and after every reconnect and online change, INVALID/UDF until
-  the first readback, which the setpoint then takes over; a setpoint whose
-  last write failed keeps INVALID/WRITE (or TIMEOUT) meanwhile: a resync
-  that lands between a refused put and its answer to the client must not
-  turn the put's failure into a mere "waiting" (the client would count the
-  write as done).
+  the first readback, which the setpoint then takes over; except a setpoint
+  whose last write failed: it keeps INVALID/WRITE through resyncs and
+  readbacks (a resync and its first readback can land between a refused put
+  and the put's answer to the client, which must see the put fail), and one
+  whose last write's outcome is unknown keeps INVALID/TIMEOUT until the
+  readback decides.
 
 The alarms themselves are `Health`'s (setpoint problems); this decides which.
 """
@@ -38,8 +39,6 @@ from fastcs_ethercat.ioc.health import Health
 logger = logging.getLogger(__name__)
 
 WAITING: Final = "waiting for the value the PLC holds"
-UNDELIVERED: Final = frozenset({Status.WRITE, Status.TIMEOUT})
-"""A setpoint's own problems that say its last write did not (surely) land."""
 
 
 class Setpoints:
@@ -54,7 +53,10 @@ class Setpoints:
         for attribute in attributes:
             fastcs_adapter.watch_ca_puts(attribute, self.health.show_setpoint)
             fastcs_adapter.take_over_setpoints(attribute)
-            if self.health.setpoint_status(attribute) not in UNDELIVERED:
+            status = self.health.setpoint_status(attribute)
+            if status is Status.WRITE:
+                continue  # held until a later write succeeds
+            if status is not Status.TIMEOUT:
                 self.health.setpoint_problem(attribute, Status.UDF, WAITING)
             self.health.watch_value(attribute, self._from_plc)
 

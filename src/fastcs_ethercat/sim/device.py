@@ -43,10 +43,14 @@ FRAME_LOST: Final = 0x0001
 
 @dataclass(frozen=True, slots=True)
 class Handle:
-    """A handle from 0xF003: what it points at, in which symbol version."""
+    """A handle from 0xF003: what it points at, in which configuration.
+
+    Kept by generation (every online change counts), not by the symbol
+    version, which wraps at 255: TwinCAT drops every handle on an online
+    change, so one taken 255 changes ago must not come back to life."""
 
     resolved: Resolved
-    version: int
+    generation: int
 
 
 class SimDevice:
@@ -234,7 +238,7 @@ class SimDevice:
     def new_handle(self, resolved: Resolved) -> int:
         handle = self._next_handle
         self._next_handle += 1
-        self.handles[handle] = Handle(resolved, self.version)
+        self.handles[handle] = Handle(resolved, self.generation)
         return handle
 
     def handle(self, handle: int) -> tuple[int, Resolved | None]:
@@ -242,7 +246,7 @@ class SimDevice:
         found = self.handles.get(handle)
         if found is None:
             return AdsReturnCode.DEVICE_SYMBOL_NOT_FOUND, None
-        if found.version != self.version:
+        if found.generation != self.generation:
             return AdsReturnCode.DEVICE_SYMBOL_VERSION_INVALID, None
         return AdsReturnCode.NO_ERROR, found.resolved
 
