@@ -19,15 +19,15 @@ from fastcs_ethercat.bench.chains import (
     terminals_with_coe,
 )
 from fastcs_ethercat.bench.context import BenchContext, BenchPlan
-from fastcs_ethercat.bench.esi_sections import default_extra_esi
+from fastcs_ethercat.bench.esi_sections import default_extra_esi, esi_full_parse
 from fastcs_ethercat.bench.report import (
     REQUIRED_KEYS,
     summary_lines,
     write_json,
 )
-from fastcs_ethercat.bench.runner import run_bench
+from fastcs_ethercat.bench.runner import run_bench, server_ports
 from fastcs_ethercat.cli import _typer_app
-from tests.conftest import REPO_ROOT, SHARED_ESI, TERMINALS_DIR
+from tests.conftest import ESI_SUBSET, REPO_ROOT, SHARED_ESI, TERMINALS_DIR
 
 DEMO_CHAIN = REPO_ROOT / "ioc" / "demo-chain.yaml"
 TINY = BenchPlan(
@@ -39,6 +39,7 @@ TINY = BenchPlan(
     latency_samples=3,
     start_timeout_s=60.0,
     coe_chain_sizes=(),
+    deadband_symbols=SCAN_SYMBOLS_PER_TERMINAL,
 )
 
 
@@ -72,7 +73,9 @@ def test_the_document_has_every_key(document: dict[str, Any]) -> None:
     assert document["machine"]["cores"] >= 1
     assert document["machine"]["cpu_model"]
     assert document["esi_catalog_s"] == {"skipped": "section not selected"}
+    assert document["esi_full_parse_ratio"] == {"skipped": "section not selected"}
     assert document["scan"] == []
+    assert document["scan_deadband"] == {"skipped": "section not selected"}
     json.dumps(document)  # JSON-ready as it is
 
 
@@ -126,3 +129,29 @@ def test_the_cli_refuses_an_unknown_section() -> None:
     assert "'everything' is not one of 'esi', 'start', 'scan', 'latency'" in (
         result.output
     )
+
+
+def test_the_full_parse_is_timed_against_plain_lxml(tmp_path: Path) -> None:
+    """On the ESI files the tests ship: the same documents, CPU seconds."""
+    context = BenchContext(
+        terminals=TERMINALS_DIR,
+        esi=ESI_SUBSET,
+        demo_chain=DEMO_CHAIN,
+        scratch=tmp_path,
+        plan=TINY,
+    )
+    figures = esi_full_parse(context)
+
+    assert figures["documents"] >= 1 and figures["devices"] >= 1
+    assert figures["plain_lxml_cpu_s"] > 0
+    assert figures["full_parse_cpu_s"] > 0 and figures["ratio"] > 0
+
+
+def test_the_bench_serves_on_ports_of_its_own() -> None:
+    chosen = server_ports({})
+    kept = server_ports({"EPICS_CA_SERVER_PORT": "5999"})
+
+    assert sorted(chosen) == [
+        "EPICS_CA_SERVER_PORT", "EPICS_PVA_BROADCAST_PORT", "EPICS_PVA_SERVER_PORT"
+    ]  # fmt: skip
+    assert "5064" not in chosen.values() and kept["EPICS_CA_SERVER_PORT"] == "5999"

@@ -5,6 +5,7 @@ supervisor's resync on request (a master whose handles went invalid)."""
 from __future__ import annotations
 
 import asyncio
+import time
 from typing import Any
 
 from fastcs.attributes import AttrRW
@@ -114,6 +115,19 @@ async def test_a_setpoint_waits_for_and_takes_the_plcs_value() -> None:
     assert taken == (42, 0, "")
     assert held == (42, 3, f"UDF: {WAITING}")
     assert output.shown() == ((43, 0, ""), (43, 0, ""))
+
+
+async def test_a_setpoint_takes_the_plcs_value_from_a_poll_cycles_batch() -> None:
+    """Polled values come as one batch per cycle (`Health.post_batch`): the
+    setpoint waiting for the PLC's value takes it from there too."""
+    output, health = Output(), Health()
+    Setpoints(health).follow([output.attribute])
+    await _settled()
+    published = await health.post_batch([(output.attribute, 42)], time.time())
+    await _settled()
+
+    assert published.failures == []
+    assert output.shown() == ((42, 0, ""), (42, 0, ""))
 
 
 async def test_a_resync_does_not_turn_a_refused_write_into_waiting() -> None:

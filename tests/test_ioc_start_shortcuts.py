@@ -100,3 +100,72 @@ def test_field_checks_raise_the_library_errors_and_accept_repeats() -> None:
         " too long, max 25 characters",
         'AssertionError: Can\'t write "x" to field DRVH: Not a valid integer',
     ]
+
+
+def test_lean_imports_leave_shell_gui_and_setuptools_for_later() -> None:
+    """IPython, pvi, setuptools and prompt_toolkit are not imported at start;
+    what FastCS took from them imports them when called, and they import as
+    usual."""
+    out = _run(
+        """
+        import sys
+        from fastcs_ethercat.ioc.fastcs_adapter import import_ioc_modules
+        import_ioc_modules()
+        unused = ("IPython", "pvi", "setuptools", "prompt_toolkit")
+        print(*(name in sys.modules for name in unused))
+        from fastcs.logging import _logging
+        proxy = _logging.StdoutProxy(raw=True)
+        print(type(proxy).__module__)
+        proxy.close()
+        from fastcs.transports.epics.ca import transport
+        from fastcs.controllers import Controller
+        controller = Controller()
+        controller.set_path(["LEAN"])
+        gui = transport.EpicsGUI(controller.create_api_and_tasks()[0])
+        print(type(gui).__module__, "pvi" in sys.modules)
+        import setuptools_dso
+        print(callable(setuptools_dso.setup), callable(setuptools_dso.find_dso))
+        """
+    )
+    assert out.splitlines() == [
+        "False False False False",
+        "prompt_toolkit.patch_stdout",
+        "fastcs.transports.epics.gui True",
+        "True True",
+    ]
+
+
+def test_the_ioc_gives_up_realtime_scheduling_before_epics_starts() -> None:
+    """As root EPICS would run its threads SCHED_FIFO and lock all memory."""
+    out = _run(
+        """
+        from pathlib import Path
+        from fastcs_ethercat.ioc.fastcs_adapter import import_ioc_modules
+        from fastcs_ethercat.ioc.scheduling import CAP_SYS_NICE
+        import_ioc_modules()
+        text = Path("/proc/self/status").read_text()
+        status = dict(line.split(":", 1) for line in text.splitlines())
+        print(int(status["CapEff"], 16) >> CAP_SYS_NICE & 1, status["VmLck"].split()[0])
+        """
+    )
+    assert out.split() == ["0", "0"]
+
+
+def test_the_collector_runs_rarely_and_freezes_what_the_start_built() -> None:
+    """From the IOC's start a young collection waits for `GC_THRESHOLD`
+    objects (the collector still runs); once serving, what was built is
+    frozen out of its sight."""
+    out = _run(
+        """
+        import gc
+        from fastcs_ethercat import collector
+        collector.collect_rarely()
+        print(gc.get_threshold()[0] == collector.GC_THRESHOLD, gc.isenabled())
+        built = [[position] for position in range(1000)]
+        frozen = gc.get_freeze_count()
+        collector.settle_garbage_collector()
+        print(gc.get_freeze_count() - frozen >= len(built))
+        print(gc.get_threshold()[0] == collector.GC_THRESHOLD)
+        """
+    )
+    assert out.split() == ["True", "True", "True", "True"]

@@ -46,25 +46,47 @@ def mixed_slaves(count: int, mix: list[dict[str, Any]]) -> list[dict[str, Any]]:
     return [dict(s) for s in itertools.islice(itertools.cycle(mix), count)]
 
 
-def scan_slaves(symbols: int, *, changing: bool) -> list[dict[str, Any]]:
+SCAN_CHANNELS: Final = 4
+NOISE_AMPLITUDE: Final = 4.0
+"""Counts either side of a noisy analog value's level (`scan_slaves(noisy=)`)."""
+
+
+def scan_slaves(
+    symbols: int, *, changing: bool, noisy: bool = False
+) -> list[dict[str, Any]]:
     """Enough EL3104s for `symbols` selected symbols, behind couplers.
 
     Unchanging inputs are constant; changing ones count up every task cycle
-    (run the task at the poll period so every poll sees a new value).
+    (run the task at the poll period so every poll sees a new value). Noisy
+    ones are constant but for each channel's value, which wanders a few
+    counts (`NOISE_AMPLITUDE`) about a level from cycle to cycle, as an
+    analog input's low bits do.
     """
     signal = (
         {"kind": "counter", "start": 0, "step": 1}
         if changing
         else {"kind": "constant", "value": 0}
     )
+    noise = {"kind": "sine", "offset": 1000, "amplitude": NOISE_AMPLITUDE}
     terminals = math.ceil(symbols / SCAN_SYMBOLS_PER_TERMINAL)
     slaves: list[dict[str, Any]] = []
     for index in range(terminals):
         if index % TERMINALS_PER_COUPLER == 0:
             slaves.append({"type": "EK1100"})
-        slaves.append(
-            {"type": SCAN_TYPE, "pdo_group": "Standard", "signal": dict(signal)}
-        )
+        slave: dict[str, Any] = {
+            "type": SCAN_TYPE,
+            "pdo_group": "Standard",
+            "signal": dict(signal),
+        }
+        if noisy:
+            slave["signals"] = {
+                f"AI Standard Channel {channel}.Value": {
+                    **noise,
+                    "period_s": 0.7 + 0.1 * channel,
+                }
+                for channel in range(1, SCAN_CHANNELS + 1)
+            }
+        slaves.append(slave)
     return slaves
 
 

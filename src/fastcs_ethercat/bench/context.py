@@ -21,6 +21,8 @@ class BenchPlan:
     start_timeout_s: float = 180.0
     coe_chain_sizes: tuple[int, ...] | None = None
     """Chain sizes also started with every CoE object selected (None: all)."""
+    deadband_symbols: int = 1000
+    """Symbols of the deadband run (noisy analog values, a client monitoring)."""
 
     def starts(self) -> list[tuple[int, bool]]:
         """(terminals, with CoE) of every start-up to measure."""

@@ -11,8 +11,14 @@ import tempfile
 import time
 from pathlib import Path
 
+from lxml import etree
+
 from fastcs_ethercat.bench.context import BenchContext
-from fastcs_ethercat.esi import build_catalog
+from fastcs_ethercat.esi import build_catalog, parse_all
+from fastcs_ethercat.esi.sources import find_documents
+
+FULL_PARSE_RUNS = 3
+"""Repeats of the plain and the full parse (each ~1 s): the median is kept."""
 
 
 def esi_catalog_s(context: BenchContext) -> float:
@@ -56,10 +62,39 @@ def terminals_regenerate_s(context: BenchContext) -> float:
     return round(statistics.median(times), 3)
 
 
+def esi_full_parse(context: BenchContext) -> dict[str, float | int]:
+    """Every device of the ESI source fully parsed (`parse_all`) against a
+    plain `lxml.etree.fromstring` of the same documents, in this run: CPU
+    seconds (process time, so other load does not count), medians."""
+    documents = find_documents(context.esi)
+    plain_s, full_s, devices = [], [], 0
+    for _ in range(FULL_PARSE_RUNS):
+        start = time.process_time()
+        for document in documents:
+            etree.fromstring(document.read())
+        plain_s.append(time.process_time() - start)
+        start = time.process_time()
+        devices = len(parse_all(context.esi).devices)
+        full_s.append(time.process_time() - start)
+    plain, full = statistics.median(plain_s), statistics.median(full_s)
+    return {
+        "documents": len(documents),
+        "devices": devices,
+        "plain_lxml_cpu_s": round(plain, 3),
+        "full_parse_cpu_s": round(full, 3),
+        "ratio": round(full / plain, 2),
+    }
+
+
 def default_extra_esi(repo: Path) -> tuple[Path, ...]:
     """ESI files the shared directory lacks but the terminal YAML needs."""
     fixture = repo / "tests" / "data" / "esi" / "EL3356-0010-fixture.xml"
     return (fixture,) if fixture.is_file() else ()
 
 
-__all__ = ["default_extra_esi", "esi_catalog_s", "terminals_regenerate_s"]
+__all__ = [
+    "default_extra_esi",
+    "esi_catalog_s",
+    "esi_full_parse",
+    "terminals_regenerate_s",
+]

@@ -7,7 +7,6 @@ from __future__ import annotations
 import asyncio
 import os
 import statistics
-import time
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 from dataclasses import dataclass
@@ -21,7 +20,6 @@ from fastcs_ethercat.bench.camon import (
     change_latencies_ms,
     connect_all,
     percentiles,
-    updates_per_second,
 )
 from fastcs_ethercat.bench.chains import (
     demo_mix,
@@ -37,7 +35,7 @@ from fastcs_ethercat.bench.iocproc import (
     list_pvs,
     write_ioc_config,
 )
-from fastcs_ethercat.bench.procstat import cpu_percent_over, peak_rss_mb
+from fastcs_ethercat.bench.procstat import peak_rss_mb
 from fastcs_ethercat.sim.process import SimProcess
 
 SETTLE_S = 1.0
@@ -73,6 +71,7 @@ async def running(
     task_cycle_ms: float = 10.0,
     terminals: Path | None = None,
     timed_start: bool = False,
+    deadbands: dict[str, float] | None = None,
 ) -> AsyncIterator[Running]:
     """Start the simulator with a generated chain and the IOC against it.
 
@@ -87,6 +86,7 @@ async def running(
         prefix=PREFIX,
         terminals=terminals,
         poll_rate_hz=poll_rate_hz,
+        deadbands=deadbands,
     )
     timeout = context.plan.start_timeout_s
     with SimProcess(chain=chain, terminals=terminals) as sim:
@@ -144,63 +144,6 @@ async def ioc_start(context: BenchContext, terminals: int, coe: bool) -> dict[st
         "rss_mb": round(statistics.median(rss), 1),
         "runs": len(starts),
     }
-
-
-async def _polling(sim: SimProcess, timeout: float) -> None:
-    """Wait until the IOC's sum reads reach the simulator (polling started)."""
-    deadline = time.monotonic() + timeout
-    sim.reset_counters()
-    while sim.counters()["index_groups"].get(SUM_READ_KEY, 0) < 2:
-        if time.monotonic() > deadline:
-            raise RuntimeError(f"the IOC sent no sum reads within {timeout:g} s")
-        await asyncio.sleep(0.05)
-
-
-def _cpu_median(pid: int, windows: int, seconds: float) -> float:
-    return round(
-        statistics.median(cpu_percent_over(pid, seconds) for _ in range(windows)), 1
-    )
-
-
-async def scan(context: BenchContext, symbols: int) -> dict[str, Any]:
-    """Requests per cycle, IOC CPU unchanged / changing, updates received, at
-    10 Hz for about `symbols` selected symbols."""
-    rate = 10.0
-    plan = context.plan
-    result: dict[str, Any] = {"target_symbols": symbols, "poll_rate_hz": rate}
-    for changing in (False, True):
-        slaves = scan_slaves(symbols, changing=changing)
-        # Changing values: the task cycle equals the poll period, so each poll
-        # sees new counter values (bits included).
-        cycle_ms = 1000.0 / rate if changing else 10.0
-        name = f"scan-{symbols}-{'changing' if changing else 'unchanged'}"
-        async with running(
-            context, name, slaves, poll_rate_hz=rate, task_cycle_ms=cycle_ms
-        ) as up:
-            await _polling(up.sim, POLLING_TIMEOUT_S)
-            await asyncio.sleep(2.0 / rate + SETTLE_S)
-            pid = up.ioc.pid
-            if not changing:
-                up.sim.reset_counters()
-                start = time.monotonic()
-                result["cpu_unchanged_pct"] = await asyncio.to_thread(
-                    _cpu_median, pid, plan.runs, plan.window_s
-                )
-                counts = up.sim.counters()
-                cycles = (time.monotonic() - start) * rate
-                result["requests_per_cycle"] = round(counts["total"] / cycles, 2)
-                result["symbols"] = len(up.symbol_pvs)
-                result["rss_mb"] = round(peak_rss_mb(pid), 1)
-            else:
-                result["cpu_changing_pct"] = await asyncio.to_thread(
-                    _cpu_median, pid, plan.runs, plan.window_s
-                )
-                names = [pv.name for pv in up.symbol_pvs]
-                result["updates_per_s"] = round(
-                    await updates_per_second(names, plan.window_s), 1
-                )
-                result["updates_per_s_ideal"] = round(len(names) * rate, 1)
-    return result
 
 
 async def latency(context: BenchContext, rate_hz: float) -> dict[str, Any]:

@@ -34,16 +34,23 @@ def loopback_env() -> dict[str, str]:
 
 
 def write_ioc_config(
-    path: Path, *, prefix: str, terminals: Path, poll_rate_hz: float
+    path: Path,
+    *,
+    prefix: str,
+    terminals: Path,
+    poll_rate_hz: float,
+    deadbands: dict[str, float] | None = None,
 ) -> Path:
     """An IOC instance file (see `ioc/config.py`); target comes by flag."""
-    config = {
+    config: dict[str, object] = {
         "prefix": prefix,
         "target": "127.0.0.1:48898",
         "poll_rate_hz": poll_rate_hz,
         "terminal_dirs": [str(terminals.resolve())],
         "transports": {"ca": True, "pva": True},
     }
+    if deadbands:
+        config["deadbands"] = deadbands
     path.write_text(yaml.safe_dump(config, sort_keys=False))
     return path
 

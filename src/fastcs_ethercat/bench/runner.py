@@ -11,15 +11,16 @@ import os
 import re
 import tempfile
 import traceback
-from collections.abc import Awaitable, Callable, Collection
+from collections.abc import Awaitable, Callable, Collection, Mapping
 from pathlib import Path
 from typing import Any, Final, TypeVar
 
-from fastcs_ethercat.bench import esi_sections, ioc_sections
+from fastcs_ethercat.bench import esi_sections, ioc_sections, scan_section
 from fastcs_ethercat.bench.context import BenchContext
 from fastcs_ethercat.bench.machine import describe_machine
 from fastcs_ethercat.bench.repeater import stop_own_repeaters
 from fastcs_ethercat.bench.report import SCAN_KEYS
+from fastcs_ethercat.cli.ports import free_port
 from fastcs_ethercat.loopback import EPICS_LOOPBACK_ENV
 
 SECTIONS: Final = ("esi", "start", "scan", "latency")
@@ -64,11 +65,14 @@ async def run_sections(
     document: dict[str, Any] = {
         "quick": context.plan.runs == 1,
         "esi_catalog_s": SKIPPED,
+        "esi_full_parse_ratio": SKIPPED,
+        "esi_full_parse": SKIPPED,
         "terminals_regenerate_s": SKIPPED,
         "ioc_start_s": SKIPPED,
         "ioc_start_coe_s": SKIPPED,
         "ioc_start_detail": [],
         "scan": [],
+        "scan_deadband": SKIPPED,
         "latency_ms": SKIPPED,
         "rss_mb": SKIPPED,
         "machine": describe_machine(),
@@ -79,6 +83,13 @@ async def run_sections(
             progress,
             "ESI catalog",
         )
+        full_parse = await _guarded(
+            lambda: _in_thread(lambda: esi_sections.esi_full_parse(context)),
+            progress,
+            "ESI full parse against plain lxml",
+        )
+        document["esi_full_parse"] = full_parse
+        document["esi_full_parse_ratio"] = full_parse.get("ratio", full_parse)
         document["terminals_regenerate_s"] = await _guarded(
             lambda: _in_thread(lambda: esi_sections.terminals_regenerate_s(context)),
             progress,
@@ -89,7 +100,7 @@ async def run_sections(
     if "scan" in sections:
         for symbols in context.plan.scan_symbols:
             entry = await _guarded(
-                lambda s=symbols: ioc_sections.scan(context, s),
+                lambda s=symbols: scan_section.scan(context, s),
                 progress,
                 f"scan of ~{symbols} symbols",
             )
@@ -100,6 +111,13 @@ async def run_sections(
                     **entry,
                 }
             document["scan"].append(entry)
+        document["scan_deadband"] = await _guarded(
+            lambda: scan_section.deadband_effect(
+                context, context.plan.deadband_symbols
+            ),
+            progress,
+            f"deadband on ~{context.plan.deadband_symbols} noisy symbols",
+        )
     if "latency" in sections:
         latency: dict[str, Any] = {}
         for rate in context.plan.latency_rates_hz:
@@ -136,6 +154,19 @@ async def _start_section(
     document["rss_mb"] = rss
 
 
+def server_ports(environ: Mapping[str, str]) -> dict[str, str]:
+    """CA and PVA ports of this run's own (those `environ` gives are kept):
+    the IOCs it starts, one at a time, serve there and its clients look
+    there, never at another IOC on the host's default ports."""
+    wanted = {"EPICS_CA_SERVER_PORT": (True, True)}
+    wanted["EPICS_PVA_SERVER_PORT"] = (True, False)
+    wanted["EPICS_PVA_BROADCAST_PORT"] = (False, True)
+    return {
+        name: environ.get(name) or str(free_port(tcp=tcp, udp=udp))
+        for name, (tcp, udp) in wanted.items()
+    }
+
+
 def run_bench(
     context_for: Callable[[Path], BenchContext],
     sections: Collection[str] = SECTIONS,
@@ -145,6 +176,7 @@ def run_bench(
     stop any caRepeater the CA client library started."""
     for variable, value in EPICS_LOOPBACK_ENV.items():
         os.environ[variable] = value
+    os.environ.update(server_ports(os.environ))
     with tempfile.TemporaryDirectory(prefix="fastcs-ethercat-bench-") as scratch:
         context = context_for(Path(scratch))
         try:

@@ -114,9 +114,7 @@ def ioc_command(
             "give the IOC configuration with --config FILE "
             "(`fastcs-ethercat ioc schema` prints its JSON schema)"
         )
-    from fastcs_ethercat.ioc.fastcs_adapter import check_installed
-
-    check_installed()
+    _prepare_ioc_process()
     from fastcs_ethercat.ioc import app
     from fastcs_ethercat.ioc.config import load_ioc_config
 
@@ -154,6 +152,17 @@ def schema_command() -> None:
     sys.stdout.write(config_schema_text())
 
 
+def _prepare_ioc_process() -> None:
+    """Before the IOC's imports and tree: the collector set to collect
+    rarely (see `collector`), the installed FastCS/softioc/pvxs checked."""
+    from fastcs_ethercat.collector import collect_rarely
+
+    collect_rarely()
+    from fastcs_ethercat.ioc.fastcs_adapter import check_installed
+
+    check_installed()
+
+
 def demo_command(
     prefix: Annotated[
         str, typer.Option("--prefix", metavar="P", help="PV prefix.")
@@ -162,9 +171,7 @@ def demo_command(
 ) -> None:
     """Run the simulator with the demo chain and an IOC against it (loopback)."""
     apply_log_level(log_level)
-    from fastcs_ethercat.ioc.fastcs_adapter import check_installed
-
-    check_installed()
+    _prepare_ioc_process()
     from fastcs_ethercat.ioc import app
     from fastcs_ethercat.ioc.config import load_ioc_config
     from fastcs_ethercat.ioc.controllers.root import RootController

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from fastcs_ethercat.collector import held
 from fastcs_ethercat.errors import UserError
 
 from .cache import CatalogCache, sha256_of
@@ -143,6 +144,7 @@ def _entry(row: _Row, source: str) -> CatalogEntry:
     )
 
 
+@held()  # a burst that only builds objects: see `collector`
 def scan_document(data: bytes, name: str) -> _Scan:
     """Catalog rows, one-line warnings and passive devices of one document
     (never raises)."""

@@ -20,6 +20,7 @@ from pathlib import Path
 
 from lxml import etree
 
+from fastcs_ethercat.collector import held
 from fastcs_ethercat.errors import UserError
 
 from .device import identity_of, parse_device
@@ -171,6 +172,7 @@ def iter_devices(root: Element, source: str) -> Iterator[EsiDevice | UserError]:
             yield error
 
 
+@held()  # a burst that only builds objects: see `collector`
 def parse_document(data: bytes, source: str, *, strict: bool = False) -> EsiFileResult:
     """Parse every device of an ESI document held in memory."""
     root = read_root(data, source)

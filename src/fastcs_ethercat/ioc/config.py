@@ -18,7 +18,7 @@ import json
 import os
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, Final
+from typing import Annotated, Any, Final
 
 from pydantic import (
     BaseModel,
@@ -136,6 +136,11 @@ class IocConfig(_Strict):
     """Directories, files or globs of terminal YAML, searched in this order;
     relative to this file. Default: the terminal types shipped with
     fastcs-ethercat (a list given here replaces them)."""
+    deadbands: dict[str, Annotated[float, Field(ge=0)]] = Field(default_factory=dict)
+    """Absolute deadbands, like a record's MDEL: TwinCAT symbol name pattern
+    (glob, e.g. `*(EL3104).AI Standard Channel *.Value`) -> the change, in
+    the symbol's units, a number must exceed to be posted again; the first
+    matching pattern wins."""
     pv_aliases: dict[str, str] = Field(default_factory=dict)
     """Pin a PV segment: TwinCAT path (names joined with ^) -> PascalCase,
     different from every other name of the same controller."""

@@ -62,10 +62,11 @@ import functools
 import importlib
 import importlib.abc
 import importlib.metadata
+import importlib.util
 import sys
 import time
 import types
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Awaitable, Callable, Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from importlib.machinery import ModuleSpec
@@ -127,6 +128,8 @@ class _Closure:
 
 
 _CA_MODULE: Final = "fastcs.transports.epics.ca.ioc"
+_PVA_IOC_MODULE: Final = "fastcs.transports.epics.pva.ioc"
+"""Where FastCS's PVA transport makes its PVs (`make_shared_read_pv`)."""
 _PVA_MODULE: Final = "fastcs.transports.epics.pva._pv_handlers"
 CA_READ: Final = _Closure(
     _CA_MODULE, "_create_and_link_read_pv", "async_record_set", "record"
@@ -303,7 +306,13 @@ def _is(callback: Callable[..., Any], closure: _Closure) -> bool:
 
 
 class ValueRoute:
-    """Publishes `Update`s of one attribute, once the transports serve."""
+    """Publishes `Update`s of one attribute, once the transports serve.
+
+    `post` does it synchronously into a `CycleWrites` (one poll cycle's CA
+    writes, made under one lock) and returns what must still be awaited: the
+    first setpoint sync of an `AttrRW`, and on-update callbacks of anyone
+    else, as `update()` would call them; None almost always.
+    """
 
     def __init__(self, attribute: AttrR[Any, Any]) -> None:
         from fastcs.attributes import AttrRW
@@ -313,34 +322,299 @@ class ValueRoute:
         self.endpoints = endpoints_of(attribute)
         self._writable = isinstance(attribute, AttrRW)
         self._to_epics = cast_to_epics_type
+        self._in_record: _InRecord | None = None
         self._set_ca: Callable[[Any, Update], None] | None = None
-        self._post_pva: Callable[[Update], None] | None = None
-        if self.endpoints.pva_read is not None:
-            self._post_pva = _pva_poster(self.endpoints.pva_read, attribute)
-        if self.endpoints.ca_in is not None:
-            _use_device_time(self.endpoints.ca_in)
-            self._set_ca = _in_record_setter(self.endpoints.ca_in)
+        self._pva: Callable[[Update], None] | None = None
+        pv = self.endpoints.pva_read
+        if pv is not None:
+            read_pv = _ReadPv.of(pv)
+            self._pva = read_pv.post if read_pv else _pva_poster(pv.post, attribute)
+        device = self.endpoints.ca_in
+        if device is not None:
+            _use_device_time(device)
+            self._in_record = _InRecord.of(device, attribute.datatype)
+            if self._in_record is None:  # text, arrays: softioc processes them
+                self._set_ca = _in_record_setter(device)
 
-    async def publish(self, update: Update) -> None:
-        """What `attribute.update(update)` will do: value, setpoint, posts."""
+    def post(self, update: Update, writes: CycleWrites) -> Awaitable[None] | None:
+        """What `attribute.update(update)` will do: value, posts, setpoint."""
         attribute, value = self.attribute, update.value
         attribute._value = value  # pyright: ignore[reportPrivateUsage]
         events = attribute._on_update_events  # pyright: ignore[reportPrivateUsage]
         if events:
             attribute._on_update_events = {e for e in events if not e.set(value)}  # pyright: ignore[reportPrivateUsage]
-        if self._writable and not attribute._setpoint_initialised:  # pyright: ignore[reportAttributeAccessIssue]
-            await attribute._call_sync_setpoint_callbacks(value)  # pyright: ignore[reportAttributeAccessIssue]
-            attribute._setpoint_initialised = True  # pyright: ignore[reportAttributeAccessIssue]
-        if self._set_ca is not None:
+        if self._in_record is not None:
+            writes.add(self._in_record, update)
+        elif self._set_ca is not None:
             self._set_ca(self._to_epics(attribute.datatype, value), update)
-        if self._post_pva is not None:
-            self._post_pva(update)
+        if self._pva is not None:
+            self._pva(update)
+        if self.endpoints.others or (
+            self._writable and not attribute._setpoint_initialised  # pyright: ignore[reportAttributeAccessIssue]
+        ):
+            return self._callbacks(value)
+        return None
+
+    async def _callbacks(self, value: Any) -> None:
+        attribute: Any = self.attribute
+        if self._writable and not attribute._setpoint_initialised:
+            await attribute._call_sync_setpoint_callbacks(value)
+            attribute._setpoint_initialised = True
         for callback in self.endpoints.others:
             await callback(value)
 
+    async def publish(self, update: Update) -> None:
+        """`post` one update on its own."""
+        writes = CycleWrites(update.timestamp)
+        pending = self.post(update, writes)
+        writes.flush()
+        if pending is not None:
+            await pending
 
-def _pva_poster(pv: Any, attribute: AttrR[Any, Any]) -> Callable[[Update], None]:
-    """Posts an update's value, alarm and time in the form FastCS's PV takes."""
+
+class CycleWrites:
+    """The CA in-record writes of one poll cycle.
+
+    `flush` locks every record of the cycle at once (dbScanLockMany, which
+    waits without the GIL), writes each one's VAL, TIME and alarm and posts
+    its monitors, then unlocks: per record only EPICS's C code runs, no
+    Python device support, and no EPICS thread waits for the GIL meanwhile.
+    """
+
+    def __init__(self, stamp: float) -> None:
+        seconds = int(stamp)
+        self.packed_time = (seconds - _EPICS_EPOCH) | (
+            int((stamp - seconds) * 1e9) << 32
+        )
+        self.records: list[_InRecord] = []
+        self.updates: list[Update] = []
+
+    def add(self, record: _InRecord, update: Update) -> None:
+        self.records.append(record)
+        self.updates.append(update)
+
+    def flush(self) -> None:
+        if not self.records:
+            return
+        functions = _database_functions()
+        records, self.records = self.records, []
+        updates, self.updates = self.updates, []
+        addresses = (ctypes.c_void_p * len(records))(*[r.address for r in records])
+        locker = functions.locker_alloc(addresses, len(records), 0)
+        if not locker:
+            raise MemoryError("dbLockerAlloc failed")
+        functions.lock_many(locker)
+        try:
+            packed_time, post = self.packed_time, functions.post_events
+            for record, update in zip(records, updates, strict=True):
+                record.write(update, packed_time, post)
+        finally:
+            functions.unlock_many(locker)
+            functions.locker_free(locker)
+
+
+_EPICS_EPOCH: Final = 631152000
+"""POSIX seconds at the EPICS epoch (1990-01-01), as epicsTimeStamp counts."""
+_DBE_VALUE_LOG: Final = 1 | 4
+"""DBE_VALUE | DBE_LOG: what a record posts for a new value (no deadband)."""
+_INVALID: Final = 3
+_UDF: Final = 17
+_DIRECT_VALUE_TYPES: Final = (
+    ctypes.c_double,  # ai
+    ctypes.c_int32,  # longin
+    ctypes.c_uint16,  # bi, mbbi
+    ctypes.c_int64,  # int64in
+)
+"""softioc value types of in records whose VAL is written directly."""
+
+
+class _InRecord:
+    """A softioc in record whose VAL, TIME and alarm are written directly.
+
+    Only records whose value is one number (ai, longin, bi, mbbi, int64in).
+    softioc's own `_value` holds a value object this updates in place and no
+    timestamp, so a processing softioc does later (a client's PROC, an
+    alarm) writes the same value and keeps the record's time.
+    """
+
+    __slots__ = (
+        "address",
+        "device",
+        "epics_value",
+        "is_float",
+        "severity",
+        "status",
+        "time",
+        "to_record",
+        "udf",
+        "value",
+        "value_address",
+    )
+
+    def __init__(
+        self,
+        device: Any,
+        fields: Any,
+        value_type: Any,
+        to_record: Callable[[Any], Any] | None,
+    ) -> None:
+        base: int = fields.record.value
+        offsets = fields.fields
+        self.device = device
+        self.address = base
+        self.value_address = base + offsets["VAL"][0]
+        self.value = value_type.from_address(self.value_address)
+        self.time = ctypes.c_uint64.from_address(base + offsets["TIME"][0])
+        self.udf = ctypes.c_uint8.from_address(base + offsets["UDF"][0])
+        self.severity = ctypes.c_uint16.from_address(base + offsets["SEVR"][0])
+        self.status = ctypes.c_uint16.from_address(base + offsets["STAT"][0])
+        self.is_float = value_type is ctypes.c_double
+        self.to_record = to_record
+        self.epics_value = value_type(device._value[0].value)
+        device._value = (self.epics_value, *device._value[1:3], None)
+
+    @classmethod
+    def of(cls, device: Any, datatype: Any) -> _InRecord | None:
+        """The direct view of `device`'s record, None if it is not a number."""
+        from fastcs.datatypes import Enum
+        from fastcs.transports.epics.ca.util import cast_to_epics_type
+
+        fields = getattr(device, "_record", None)
+        value_type: Any = getattr(device, "_ctype_", None)
+        if fields is None or value_type not in _DIRECT_VALUE_TYPES:
+            return None
+        if fields.fields["VAL"][1] != ctypes.sizeof(value_type):
+            return None
+        to_record = None
+        if isinstance(datatype, Enum):  # the record holds the member's index
+            to_record = functools.partial(cast_to_epics_type, datatype)
+        return cls(device, fields, value_type, to_record)
+
+    def write(self, update: Update, packed_time: int, post: Any) -> None:
+        """Under the record's lock: VAL, TIME, alarm, monitors."""
+        value = update.value
+        if self.to_record is not None:
+            value = self.to_record(value)
+        severity, status = update.severity, update.status
+        if self.is_float and value != value:  # NaN: UDF, as an ai record does
+            severity, status = _INVALID, _UDF
+            self.udf.value = 1
+        else:
+            self.udf.value = 0
+        self.epics_value.value = value
+        self.value.value = value
+        self.time.value = packed_time
+        mask = _DBE_VALUE_LOG
+        if self.severity.value != severity or self.status.value != status:
+            mask |= self._alarm(severity, status)
+        post(self.address, self.value_address, mask)
+
+    def _alarm(self, severity: int, status: int) -> int:
+        """Make (severity, status) the record's alarm; the monitor mask."""
+        self.device._value = (self.epics_value, severity, status, None)
+        fields = self.device._record
+        fields.NSEV = severity
+        fields.NSTA = status
+        return _database_functions().reset_alarms(self.address)
+
+
+_READ_PV: Final = "_fastcs_ethercat_read_pv"
+"""Attribute of a FastCS PVA read PV: its `_ReadPv`."""
+
+
+class _ReadPv:
+    """A FastCS PVA read PV that the poll cycles post to only while a client
+    is connected.
+
+    p4p's post copies a value into pvxs even when nobody listens (~5 µs a
+    value, most of a core for a rack whose values all change). While no
+    channel is open, a cycle's update only waits here. The first connection
+    posts it before pvxs serves the channel (pvxs calls back on its own
+    thread, before it answers), so a get or a monitor never sees an older
+    value; any other post (FastCS's own, an alarm) posts it first too.
+    Attached when FastCS makes the PV (`_make_read_pvs_lazy`), so no
+    connection is missed.
+
+    No lock (a post can wait on pvxs's thread): the connecting thread's post
+    may cross one of the event loop's, so each post counts itself, and a
+    post that another crossed is followed by the newest update again.
+    """
+
+    def __init__(self, pv: Any, attribute: AttrR[Any, Any]) -> None:
+        self.connected = False
+        self.waiting: Update | None = None
+        self.newest: Update | None = None
+        self.posts = 0
+        raw_post = pv.post
+        self._post = _pva_poster(raw_post, attribute)
+        handler = pv._whandler  # p4p looks its callbacks up on every call
+        first, last = handler.onFirstConnect, handler.onLastDisconnect
+
+        def on_first_connect() -> None:
+            self.connected = True
+            self._catch_up()
+            first()
+
+        def on_last_disconnect() -> None:
+            self.connected = False
+            last()
+
+        def post_now(value: Any, **kws: Any) -> None:
+            self._catch_up()
+            self.newest = None  # ours is older than this one
+            raw_post(value, **kws)
+
+        handler.onFirstConnect = on_first_connect
+        handler.onLastDisconnect = on_last_disconnect
+        pv.post = post_now
+        pv.__dict__[_READ_PV] = self
+
+    @staticmethod
+    def of(pv: Any) -> _ReadPv | None:
+        return pv.__dict__.get(_READ_PV)
+
+    def post(self, update: Update) -> None:
+        """A poll cycle's update: posted now if a client is connected."""
+        self.newest = update
+        if self.connected:
+            self.waiting = None
+            self.posts += 1
+            self._post(update)
+        else:
+            self.waiting = update
+
+    def _catch_up(self) -> None:
+        """Post the waiting update, and the newest again if a post crossed."""
+        update, self.waiting = self.waiting, None
+        while update is not None:
+            before = self.posts = self.posts + 1
+            self._post(update)
+            if self.posts == before:
+                return
+            update = self.newest
+
+
+def _make_read_pvs_lazy() -> None:
+    """Every PVA read PV FastCS makes from now on gets its `_ReadPv`."""
+    module: Any = importlib.import_module(_PVA_IOC_MODULE)
+    make: Any = module.make_shared_read_pv
+    if getattr(make, "_fastcs_ethercat", False):
+        return
+
+    def make_shared_read_pv(attribute: AttrR[Any, Any]) -> Any:
+        pv = make(attribute)
+        _ReadPv(pv, attribute)
+        return pv
+
+    make_shared_read_pv._fastcs_ethercat = True  # type: ignore[attr-defined]
+    module.make_shared_read_pv = make_shared_read_pv
+
+
+def _pva_poster(
+    post: Callable[..., None], attribute: AttrR[Any, Any]
+) -> Callable[[Update], None]:
+    """Posts an update's value, alarm and time in the form FastCS's PV takes
+    (`post`: the PV's)."""
     from fastcs.datatypes import Bool, Enum, Float, Int, String, Waveform
     from fastcs.transports.epics.pva.types import cast_to_p4p_value
 
@@ -354,7 +628,7 @@ def _pva_poster(pv: Any, attribute: AttrR[Any, Any]) -> Callable[[Update], None]
 
     def scalar(update: Update) -> None:
         alarm = alarm_of(update) if update.severity else _NO_ALARM
-        pv.post(
+        post(
             {
                 "value": update.value,
                 "alarm": alarm,
@@ -363,7 +637,7 @@ def _pva_poster(pv: Any, attribute: AttrR[Any, Any]) -> Callable[[Update], None]
         )
 
     def wrapped(update: Update) -> None:  # NTEnum, NTNDArray: p4p wraps them
-        pv.post(
+        post(
             cast_to_p4p_value(attribute, update.value),
             timestamp=update.timestamp,
             severity=update.severity,
@@ -371,7 +645,7 @@ def _pva_poster(pv: Any, attribute: AttrR[Any, Any]) -> Callable[[Update], None]
         )
 
     def plain(update: Update) -> None:
-        pv.post(cast_to_p4p_value(attribute, update.value))
+        post(cast_to_p4p_value(attribute, update.value))
 
     datatype = attribute.datatype
     if isinstance(datatype, Int | Float | Bool | String):
@@ -380,7 +654,8 @@ def _pva_poster(pv: Any, attribute: AttrR[Any, Any]) -> Callable[[Update], None]
 
 
 def _post_pva_alarm(pv: Any, severity: int, status: int, message: str) -> None:
-    """Post only alarm and time, so the value stays as last posted."""
+    """Post only alarm and time, so the value stays as last posted (a value
+    waiting for a client is posted first: see `_ReadPv`)."""
     now = time.time()
     if isinstance(pv.current(), np.ndarray):
         # NTNDArray (a FastCS Waveform) wraps only arrays; its alarm has no status.
@@ -464,19 +739,19 @@ def _set_out_record_alarm(record: Any, severity: int, status: int) -> None:
         return
     functions = _database_functions()
     base: int = fields.record.value
-    value_address = ctypes.c_void_p(base + fields.fields["VAL"][0])
-    functions.lock(fields)
+    value_address = base + fields.fields["VAL"][0]
+    functions.lock(base)
     try:
         fields.NSEV = severity
         fields.NSTA = status
         if fields.PACT:
             return
         fields.TIME = time.time()
-        changed = functions.reset_alarms(fields)
+        changed = functions.reset_alarms(base)
         if changed:
-            functions.post_events(ctypes.c_void_p(base), value_address, changed)
+            functions.post_events(base, value_address, changed)
     finally:
-        functions.unlock(fields)
+        functions.unlock(base)
 
 
 @dataclass(frozen=True)
@@ -485,22 +760,51 @@ class _DatabaseFunctions:
     unlock: Any
     reset_alarms: Any
     post_events: Any
+    locker_alloc: Any
+    locker_free: Any
+    lock_many: Any
+    unlock_many: Any
 
 
 @functools.cache
 def _database_functions() -> _DatabaseFunctions:
-    """EPICS database calls, loaded only once a CA IOC (softioc) runs."""
-    from epicscorelibs.ioc import dbCore
-    from softioc.imports import recGblResetAlarms
+    """EPICS database calls, loaded only once a CA IOC (softioc) runs.
 
-    for name in ("dbScanLock", "dbScanUnlock"):
-        getattr(dbCore, name).argtypes = (ctypes.c_void_p,)
-        getattr(dbCore, name).restype = None
-    post_events = dbCore.db_post_events
+    Locking waits without the GIL (a record being processed may be waiting
+    for it); the calls made under the lock keep it (no other thread gets a
+    turn in between).
+    """
+    from epicscorelibs.ioc import dbCore
+
+    keeping_gil = ctypes.PyDLL(dbCore._name)
+    pointer = (ctypes.c_void_p,)
+    for library, name in (
+        (dbCore, "dbScanLock"),
+        (dbCore, "dbScanUnlock"),
+        (dbCore, "dbScanLockMany"),
+        (keeping_gil, "dbScanUnlockMany"),
+        (keeping_gil, "dbLockerFree"),
+    ):
+        getattr(library, name).argtypes = pointer
+        getattr(library, name).restype = None
+    locker_alloc = keeping_gil.dbLockerAlloc
+    locker_alloc.argtypes = (ctypes.c_void_p, ctypes.c_size_t, ctypes.c_uint)
+    locker_alloc.restype = ctypes.c_void_p
+    reset_alarms = keeping_gil.recGblResetAlarms
+    reset_alarms.argtypes = pointer
+    reset_alarms.restype = ctypes.c_ushort
+    post_events = keeping_gil.db_post_events
     post_events.argtypes = (ctypes.c_void_p, ctypes.c_void_p, ctypes.c_uint)
     post_events.restype = ctypes.c_int
     return _DatabaseFunctions(
-        dbCore.dbScanLock, dbCore.dbScanUnlock, recGblResetAlarms, post_events
+        lock=dbCore.dbScanLock,
+        unlock=dbCore.dbScanUnlock,
+        reset_alarms=reset_alarms,
+        post_events=post_events,
+        locker_alloc=locker_alloc,
+        locker_free=keeping_gil.dbLockerFree,
+        lock_many=dbCore.dbScanLockMany,
+        unlock_many=keeping_gil.dbScanUnlockMany,
     )
 
 
@@ -638,33 +942,93 @@ def _caller_package() -> str:
     return sys._getframe(2).f_globals["__name__"]  # pyright: ignore[reportPrivateUsage]
 
 
+_DEFERRED: Final = {
+    "IPython.terminal.embed": ("InteractiveShellEmbed",),
+    "fastcs.transports.epics.emission": ("emit_docs_files", "emit_gui_files"),
+    "fastcs.transports.epics.gui": ("EpicsGUI",),
+    "fastcs.transports.epics.pva.gui": ("PvaEpicsGUI",),
+    "prompt_toolkit.patch_stdout": ("StdoutProxy",),
+}
+"""Modules FastCS imports at start only to define names an IOC without an
+interactive shell or GUI files never calls (IPython, pvi; prompt_toolkit,
+0.1 s, for `fastcs.logging.configure_logging`, which this IOC does not call:
+`logs.py` routes FastCS's log): stood in for by names that import the real
+module when first called."""
+_DSO_PACKAGE: Final = "setuptools_dso"
+_DSO_RUNTIME: Final = "setuptools_dso.runtime"
+_DSO_NAMES: Final = ("find_dso", "dylink_prepare_dso")
+"""The package EPICS's wheels find their libraries with: its `__init__`
+imports setuptools (and with it pkg_resources, which reads the metadata of
+every installed distribution) to offer build commands; at run time only
+these names of its `runtime` are used."""
+
+
+def _deferred(module: str, name: str) -> Callable[..., Any]:
+    def call(*args: Any, **kwargs: Any) -> Any:
+        return getattr(importlib.import_module(module), name)(*args, **kwargs)
+
+    call.__name__ = call.__qualname__ = name
+    return call
+
+
+def _stand_ins() -> dict[str, types.ModuleType]:
+    """Stand-in modules for what is not imported yet (see `_DEFERRED`)."""
+    found: dict[str, types.ModuleType] = {}
+    for name, names in _DEFERRED.items():
+        if name not in sys.modules and importlib.util.find_spec(name.split(".")[0]):
+            module = found[name] = types.ModuleType(name, "stands in at start")
+            for attribute in names:
+                module.__dict__[attribute] = _deferred(name, attribute)
+    if _DSO_PACKAGE not in sys.modules:
+        spec = importlib.util.find_spec(_DSO_PACKAGE)
+        if spec is not None and spec.submodule_search_locations:
+            package = found[_DSO_PACKAGE] = types.ModuleType(_DSO_PACKAGE)
+            package.__path__ = list(spec.submodule_search_locations)
+    return found
+
+
 @contextmanager
 def lean_imports() -> Iterator[None]:
-    """Within: unused FastCS transports are not imported, DSOs found quickly."""
+    """Within: unused FastCS transports are not imported, DSOs found quickly
+    and without setuptools, `_DEFERRED` modules stood in for."""
+    stood_in = _stand_ins()
+    sys.modules.update(stood_in)
     finder = _RefuseUnused()
     sys.meta_path.insert(0, finder)
     try:
-        runtime: Any = importlib.import_module("setuptools_dso.runtime")
+        runtime: Any = importlib.import_module(_DSO_RUNTIME)
     except ImportError:
         runtime = None
+    package = stood_in.get(_DSO_PACKAGE)
+    if package is not None and runtime is not None:
+        for name in _DSO_NAMES:
+            package.__dict__[name] = getattr(runtime, name)
     auto_pkg = getattr(runtime, "_auto_pkg", None)
-    if auto_pkg is not None:
+    if runtime is not None and auto_pkg is not None:
         runtime._auto_pkg = _caller_package
     try:
         yield
     finally:
         sys.meta_path.remove(finder)
-        if auto_pkg is not None:
+        if runtime is not None and auto_pkg is not None:
             runtime._auto_pkg = auto_pkg
+        for name, module in stood_in.items():
+            if sys.modules.get(name) is module:
+                del sys.modules[name]
 
 
 def import_ioc_modules() -> None:
-    """Import FastCS with its CA and PVA transports the quick way (once)."""
-    if all(name in sys.modules for name in IOC_MODULES):
-        return
-    with lean_imports():
-        for name in IOC_MODULES:
-            importlib.import_module(name)
+    """Import FastCS with its CA and PVA transports the quick way (once),
+    EPICS without real-time threads (`scheduling`); the PVA read PVs FastCS
+    makes are posted to lazily (`_ReadPv`)."""
+    if not all(name in sys.modules for name in IOC_MODULES):
+        from fastcs_ethercat.ioc.scheduling import give_up_realtime_scheduling
+
+        give_up_realtime_scheduling()  # before EPICS starts a thread
+        with lean_imports():
+            for name in IOC_MODULES:
+                importlib.import_module(name)
+    _make_read_pvs_lazy()
 
 
 # -- the check at start --------------------------------------------------------
@@ -719,6 +1083,10 @@ def shape_problems() -> list[str]:
             problems.append(f"fastcs: {closure.qualname} is gone")
         elif closure.cell not in inner[0].co_freevars:
             problems.append(f"fastcs: {closure.qualname} has no {closure.cell}")
+    parse = getattr(importlib.import_module(_PVA_IOC_MODULE), "parse_attributes", None)
+    names = parse.__code__.co_names if isinstance(parse, types.FunctionType) else ()
+    if "make_shared_read_pv" not in names:
+        problems.append(f"fastcs: {_PVA_IOC_MODULE} makes its read PVs another way")
     from fastcs.attributes import AttrR, AttrRW, AttrW
     from fastcs.datatypes import Int
 

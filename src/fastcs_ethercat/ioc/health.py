@@ -36,7 +36,7 @@ from fastcs.attributes import Attribute, AttrR
 from fastcs_ethercat.ioc import alarms
 from fastcs_ethercat.ioc.alarms import NO_ALARM, AlarmState, Severity, Status
 from fastcs_ethercat.ioc.fastcs_adapter import Parts
-from fastcs_ethercat.ioc.publish import Publisher
+from fastcs_ethercat.ioc.publish import Failure, Published, Publisher
 
 logger = logging.getLogger(__name__)
 
@@ -142,8 +142,7 @@ class Health:
         stays in alarm; then its followers' values."""
         key = id(attribute)
         if key in self._reasons:
-            self._held[key] = (value, stamp)
-            await self._drop(attribute, FRESH)
+            await self._hold(attribute, value, stamp)
         else:
             await self.publisher.publish(attribute, value, stamp)
             if self._watches:
@@ -152,6 +151,59 @@ class Health:
         if followers is not None:
             for follower, convert in followers:
                 await self.post(follower, convert(value), stamp)
+
+    async def post_batch(
+        self, values: list[tuple[AttrR[Any, Any], Any]], stamp: float
+    ) -> Published:
+        """Fresh values of one poll cycle read at `stamp`, as `post` for each
+        (followers included); the ones not in alarm published together."""
+        failures: list[Failure] = []
+        if self._followers:
+            values = self._and_followers(values, failures)
+        reasons = self._reasons
+        if reasons:
+            held = [(a, v) for a, v in values if id(a) in reasons]
+            values = [(a, v) for a, v in values if id(a) not in reasons]
+            for attribute, value in held:
+                try:
+                    await self._hold(attribute, value, stamp)
+                except Exception as error:  # one value must not stop the others
+                    failures.append((attribute, error))
+        published = await self.publisher.publish_batch(values, stamp)
+        if self._watches:  # as `post` does, for the values published together
+            failed = {id(attribute) for attribute, _ in published.failures}
+            for attribute, value in values:
+                if id(attribute) in self._watches and id(attribute) not in failed:
+                    await self._watched(attribute, value)
+        return published._replace(failures=failures + published.failures)
+
+    def _and_followers(
+        self, values: list[tuple[AttrR[Any, Any], Any]], failures: list[Failure]
+    ) -> list[tuple[AttrR[Any, Any], Any]]:
+        """`values`, each followed by its followers' values (theirs too)."""
+        expanded: list[tuple[AttrR[Any, Any], Any]] = []
+
+        def add(attribute: AttrR[Any, Any], value: Any) -> None:
+            expanded.append((attribute, value))
+            for follower, convert in self._followers.get(id(attribute), ()):
+                try:
+                    converted = convert(value)
+                except Exception as error:  # one value must not stop the others
+                    failures.append((follower, error))
+                else:
+                    add(follower, converted)
+
+        for attribute, value in values:
+            add(attribute, value)
+        return expanded
+
+    async def _hold(
+        self, attribute: AttrR[Any, Any], value: Any, stamp: float | None
+    ) -> None:
+        """A fresh value of an attribute in alarm: kept, shown when the
+        alarm ends; the fresh value disproves `FRESH` reasons."""
+        self._held[id(attribute)] = (value, stamp)
+        await self._drop(attribute, FRESH)
 
     def watch_value(self, attribute: AttrR[Any, Any], watch: ValueWatch) -> None:
         """Call `watch` once, with the next value published for `attribute`

@@ -1,9 +1,11 @@
 """Post polled values to their PVs, every value of one poll cycle at one time.
 
 A poll cycle's values were all read by one ADS request, so they all carry
-that request's time, and only values that changed are posted. The posting
-itself (`Update(value, timestamp)` straight to the CA record and the PVA PV)
-is `fastcs_adapter`'s until FastCS releases its own `Update`.
+that request's time, and only values that changed are posted. A cycle's
+values are posted together (`publish_batch`): their CA records are written
+under one lock and none of them waits on another thread. The posting itself
+(`Update(value, timestamp)` straight to the CA record and the PVA PV) is
+`fastcs_adapter`'s until FastCS releases its own `Update`.
 
 Alarms are not sticky here either: a published value carries its own alarm,
 NO_ALARM unless its datatype makes it an alarm state (a set Error bit: the
@@ -14,16 +16,34 @@ severity from the datatype's table, status STATE; see `ioc.alarms`,
 from __future__ import annotations
 
 import time
-from typing import Any
+from collections.abc import Awaitable, Iterable
+from typing import Any, Final, NamedTuple
 
 from fastcs.attributes import AttrR
 
+from fastcs_ethercat.collector import freeze_new, settle_garbage_collector
 from fastcs_ethercat.ioc.alarms import state_alarm
 from fastcs_ethercat.ioc.datatypes import severity_table
-from fastcs_ethercat.ioc.fastcs_adapter import Update, ValueRoute
+from fastcs_ethercat.ioc.deadband import Deadbands
+from fastcs_ethercat.ioc.fastcs_adapter import CycleWrites, Update, ValueRoute
 
-_Route = tuple[ValueRoute, Any]
-"""An attribute's route and its datatype's severity table (None: no alarms)."""
+FREEZE_AFTER_ROUTES: Final = 100
+"""A batch that made this many routes (a first cycle) freezes the heap again."""
+
+Failure = tuple[AttrR[Any, Any], Exception]
+"""An attribute whose value could not be posted, and why."""
+
+
+class Published(NamedTuple):
+    """What one batch did: values posted, and the ones that failed."""
+
+    posted: int
+    failures: list[Failure]
+
+
+_Route = tuple[ValueRoute, float, Any]
+"""An attribute's route, its deadband (0: none) and its datatype's severity
+table (None: no alarms)."""
 
 
 class Publisher:
@@ -32,37 +52,107 @@ class Publisher:
     Until `start()` (the transports' PVs exist only from when they serve),
     values go through `update()`. The first value published for an attribute
     is posted even when it equals the attribute's value, so its records start
-    on device time with a real timestamp.
+    on device time with a real timestamp. A number with a deadband
+    (`ioc.deadband`) is posted only when it moved further than that from the
+    value posted last, which its attribute keeps.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, deadbands: Deadbands | None = None) -> None:
         self.started = False
+        self.deadbands = deadbands or Deadbands()
+        self.posted = 0
+        """Values posted since start (a running total, for rates)."""
+        self.within_deadband = 0
+        """New values not posted: within their deadband of the last posted."""
         self._routes: dict[int, _Route] = {}
 
     def start(self) -> None:
+        """The transports serve: post straight to their PVs from now on."""
         self.started = True
+        settle_garbage_collector()
 
     async def publish(
         self, attribute: AttrR[Any, Any], value: Any, stamp: float | None = None
     ) -> bool:
         """Post `value` (if new) at `stamp` (now if None); True if posted."""
-        datatype = attribute.datatype
-        validated = datatype.validate(value)
+        posted, failures = await self.publish_batch([(attribute, value)], stamp)
+        if failures:
+            raise failures[0][1]
+        return posted == 1
+
+    async def publish_batch(
+        self,
+        values: Iterable[tuple[AttrR[Any, Any], Any]],
+        stamp: float | None = None,
+    ) -> Published:
+        """Post each new value at `stamp` (now if None), all CA records of
+        the batch under one lock; a value that fails does not stop the
+        others."""
+        stamp = stamp or time.time()
         if not self.started:
-            if datatype.equal(attribute.get(), validated):
-                return False
-            await attribute.update(validated)
-            return True
-        found = self._routes.get(id(attribute))
-        if found is None:
-            found = (ValueRoute(attribute), severity_table(datatype))
-            self._routes[id(attribute)] = found
-        elif datatype.equal(attribute.get(), validated):
-            return False
-        route, severity_of = found
-        if severity_of is None:
-            await route.publish(Update(validated, stamp or time.time()))
-        else:
-            alarm = state_alarm(severity_of(validated))
-            await route.publish(Update(validated, stamp or time.time(), *alarm))
-        return True
+            return await self._update_each(values)
+        writes = CycleWrites(stamp)
+        routes = self._routes
+        failures: list[Failure] = []
+        waiting: list[tuple[AttrR[Any, Any], Awaitable[None]]] = []
+        posted = made = 0
+        try:
+            for attribute, value in values:
+                try:
+                    datatype = attribute.datatype
+                    validated = datatype.validate(value)
+                    entry = routes.get(id(attribute))
+                    if entry is None:
+                        band = self.deadbands.of_attribute(attribute)
+                        severity_of = severity_table(datatype)
+                        route = ValueRoute(attribute)
+                        routes[id(attribute)] = (route, band, severity_of)
+                        made += 1
+                    else:
+                        route, band, severity_of = entry
+                        if band:
+                            if abs(validated - attribute.get()) <= band:
+                                self.within_deadband += 1
+                                continue
+                        elif datatype.equal(attribute.get(), validated):
+                            continue
+                    if severity_of is None:
+                        update = Update(validated, stamp)
+                    else:  # a state bit: its alarm goes with it
+                        alarm = state_alarm(severity_of(validated))
+                        update = Update(validated, stamp, *alarm)
+                    pending = route.post(update, writes)
+                except Exception as error:
+                    failures.append((attribute, error))
+                    continue
+                posted += 1
+                if pending is not None:
+                    waiting.append((attribute, pending))
+        finally:
+            writes.flush()
+        if made >= FREEZE_AFTER_ROUTES:
+            freeze_new()  # routes live as long as the IOC
+        self.posted += posted
+        for attribute, pending in waiting:
+            try:
+                await pending
+            except Exception as error:
+                failures.append((attribute, error))
+        return Published(posted, failures)
+
+    async def _update_each(
+        self, values: Iterable[tuple[AttrR[Any, Any], Any]]
+    ) -> Published:
+        """Before the transports serve: FastCS's own `update()`."""
+        failures: list[Failure] = []
+        posted = 0
+        for attribute, value in values:
+            try:
+                validated = attribute.datatype.validate(value)
+                if attribute.datatype.equal(attribute.get(), validated):
+                    continue
+                await attribute.update(validated)
+                posted += 1
+            except Exception as error:
+                failures.append((attribute, error))
+        return Published(posted, failures)

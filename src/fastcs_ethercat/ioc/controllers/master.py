@@ -398,18 +398,25 @@ class MasterController(Controller):
         return [g.poller.stats for g in self.groups if g.poller is not None]
 
     async def _post_batches(self, batches: asyncio.Queue[Batch]) -> None:
+        """Each cycle's changes posted together (one lock for its CA records)."""
         attributes, health = self.attributes_by_key, self.health
         while True:
             changes, stamp = await batches.get()
+            values: list[tuple[AttrR[Any, Any], Any]] = []
             for point, value in changes:
                 attr = attributes.get(point.key)
                 if attr is None:
                     continue
                 try:
-                    await health.post(attr, from_device(attr, value), stamp)
+                    values.append((attr, from_device(attr, value)))
                 except Exception as error:  # one value must not stop the others
-                    self.failures += 1
-                    self.last_error = f"{point.symbol}: {type(error).__name__}: {error}"
+                    self._failed(point.symbol, error)
+            for attr, error in (await health.post_batch(values, stamp)).failures:
+                self._failed(attr.full_name or attr.name, error)
+
+    def _failed(self, what: str, error: Exception) -> None:
+        self.failures += 1
+        self.last_error = f"{what}: {type(error).__name__}: {error}"
 
     def note_errors(self, errors: list[tuple[Point, int]]) -> None:
         """Points whose read failed this cycle: only they go into alarm (their

@@ -44,6 +44,7 @@ from fastcs_ethercat.ioc.controllers.tree import (
     slave_path,
 )
 from fastcs_ethercat.ioc.datatypes import AlarmBool, ExactFloat, alarm_enum
+from fastcs_ethercat.ioc.deadband import Deadbands
 from fastcs_ethercat.ioc.health import COMM, Health
 from fastcs_ethercat.ioc.naming import (
     MAX_PV_LENGTH,
@@ -54,6 +55,7 @@ from fastcs_ethercat.ioc.naming import (
 )
 from fastcs_ethercat.ioc.plan import MasterPlan, SystemPlan, TerminalPlan
 from fastcs_ethercat.ioc.process_stats import ProcessStats
+from fastcs_ethercat.ioc.publish import Publisher
 from fastcs_ethercat.ioc.reconnect import Reconnection
 from fastcs_ethercat.ioc.supervisor import LinkState
 from fastcs_ethercat.logs import log_at_most
@@ -96,6 +98,7 @@ ROOT_LEAVES: Final = (
     "PollCycleTime",
     "PollRate",
     "AdsRequestRate",
+    "PostRate",
     "PollErrors",
     "LastError",
     "ConnectionState",
@@ -114,16 +117,21 @@ class RateTracker:
     last_time: float = 0.0
     last_cycles: int = 0
     last_requests: int = 0
+    last_posts: int = 0
     cycles_per_second: float = 0.0
     requests_per_second: float = 0.0
+    posts_per_second: float = 0.0
 
-    def update(self, now: float, cycles: int, requests: int) -> None:
+    def update(self, now: float, cycles: int, requests: int, posts: int = 0) -> None:
         elapsed = now - self.last_time
         restarted = cycles < self.last_cycles or requests < self.last_requests
         if self.last_time and elapsed > 0 and not restarted:  # new pollers: skip
             self.cycles_per_second = (cycles - self.last_cycles) / elapsed
             self.requests_per_second = (requests - self.last_requests) / elapsed
+        if self.last_time and elapsed > 0:
+            self.posts_per_second = (posts - self.last_posts) / elapsed
         self.last_time, self.last_cycles, self.last_requests = now, cycles, requests
+        self.last_posts = posts
 
 
 class RootController(Controller):
@@ -141,7 +149,7 @@ class RootController(Controller):
         self.plan_source = plan_source
         self.registry = registry
         """The terminal YAML, kept for discoveries after a reconnect."""
-        self.health = Health()
+        self.health = Health(Publisher(Deadbands.of_config(config.deadbands)))
         self.masters: list[MasterController] = []
         self.attrs: dict[str, AttrR[Any, Any]] = {}
         self.pv_count = 0
@@ -354,6 +362,7 @@ class RootController(Controller):
             time.monotonic(),
             sum(s.cycles for s in stats),
             sum(s.requests for s in stats),
+            self.health.publisher.posted,
         )
         link = self.reconnection.supervisor.stats
         connected = self.reconnection.connection.connected
@@ -374,6 +383,7 @@ class RootController(Controller):
         )
         await post(a["PollRate"], self.rates.cycles_per_second)
         await post(a["AdsRequestRate"], self.rates.requests_per_second)
+        await post(a["PostRate"], self.rates.posts_per_second)
         errors_total = sum(s.errors + s.item_errors for s in stats)
         await post(a["PollErrors"], min(errors_total, 2**31 - 1))
         await post(a["LastError"], last_error[:200])
@@ -449,6 +459,9 @@ def _root_attributes(
         ),
         "AdsRequestRate": AttrR(
             ExactFloat(units="1/s", prec=1), description="ADS requests per second"
+        ),
+        "PostRate": AttrR(
+            ExactFloat(units="1/s", prec=1), description="Polled values posted per s"
         ),
         "PollErrors": AttrR(Int(), description="Failed poll reads"),
         "LastError": AttrR(String(), description="Last ADS error"),

@@ -1,0 +1,62 @@
+"""The garbage collector, kept out of the way of bursts that only build.
+
+Parsing an ESI document builds some 100 000 objects that all live on: the
+collector's passes over them were 10 % of a full parse. An IOC builds
+hundreds of thousands of objects that live as long as it does (the controller
+tree, its records and PVs). With CPython's default threshold (a young
+collection every 700 objects) the collector walks them again and again while
+they are built: 565 collections, 0.36 s of the start of 104 terminals. And a
+rack whose every value changes allocates short-lived tuples at 100 000 values
+a second: collected 150 times a second, half its CPU.
+"""
+
+from __future__ import annotations
+
+import gc
+from collections.abc import Iterator
+from contextlib import contextmanager
+from typing import Final
+
+GC_THRESHOLD: Final = 50_000
+"""Tracked objects allocated (net) before a young collection; by then a poll
+cycle's short-lived tuples are gone."""
+
+
+@contextmanager
+def held() -> Iterator[None]:
+    """No collection within: for a bounded burst (one document's parse)."""
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if enabled:
+            gc.enable()
+
+
+def collect_rarely() -> None:
+    """Young collections every `GC_THRESHOLD` objects (from the IOC's start:
+    the collector still runs, so a long wait for the target leaks nothing)."""
+    _, *older = gc.get_threshold()
+    gc.set_threshold(GC_THRESHOLD, *older)
+
+
+def settle_garbage_collector() -> None:
+    """Once the IOC serves: what is built so far is moved out of the
+    collector's sight (`gc.freeze`), else every full collection walks it all."""
+    gc.freeze()
+    collect_rarely()
+
+
+def freeze_new() -> None:
+    """Objects made since (a first cycle's routes) live as long as the IOC."""
+    gc.freeze()
+
+
+__all__ = [
+    "GC_THRESHOLD",
+    "collect_rarely",
+    "freeze_new",
+    "held",
+    "settle_garbage_collector",
+]

@@ -1,0 +1,202 @@
+"""The publish path end to end: a poll cycle's values written to their CA
+records under one lock and posted to PVA only while a client listens.
+
+The IOC (tests/data/publish_ioc.py) runs in a subprocess on free loopback
+ports, publishes batches through `Health` as the poll cycles do, and takes
+commands on stdin; real clients read the result: `caget -a`, `caput`, p4p.
+"""
+
+from __future__ import annotations
+
+import math
+import queue
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from datetime import datetime
+from typing import Any
+
+import pytest
+
+from tests.conftest import TEST_DATA
+from tests.ioc_support import (
+    START_TIMEOUT,
+    IocProcess,
+    caget,
+    ioc_env,
+    new_token,
+    wait_for,
+)
+
+pytestmark = pytest.mark.e2e
+
+NAMES = ("Temperature", "Counts", "Flag", "Mode", "Text")
+
+
+@pytest.fixture(scope="module")
+def ioc() -> Iterator[IocProcess]:
+    token = new_token()
+    prefix = f"PUB{token[:6].upper()}"
+    env = ioc_env(token)
+    process = subprocess.Popen(
+        [sys.executable, str(TEST_DATA / "publish_ioc.py"), "--prefix", prefix],
+        env=env,
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
+    lines: queue.Queue[str] = queue.Queue()
+    assert process.stdout is not None
+    stdout = process.stdout
+    reader = threading.Thread(
+        target=lambda: [lines.put(x) for x in stdout], daemon=True
+    )
+    reader.start()
+    started = IocProcess(process, prefix, env, token, lines, reader=reader)
+    try:
+        started.wait_for_line("publish ioc ready", START_TIMEOUT)
+        first = started.pv("Counts")
+        assert wait_for(lambda: first in caget(started, first), START_TIMEOUT)
+        yield started
+    finally:
+        started.stop()
+
+
+def command(ioc: IocProcess, line: str) -> int:
+    """Send one command; the number the IOC answers with."""
+    assert ioc.process.stdin is not None
+    ioc.process.stdin.write(line + "\n")
+    ioc.process.stdin.flush()
+    answer = ioc.wait_for_line(r"^(done|failed) ", 30)
+    assert answer.startswith("done "), answer
+    return int(answer.split()[2])
+
+
+def publish(ioc: IocProcess, stamp: float, **values: str) -> int:
+    pairs = " ".join(f"{name}={value}" for name, value in values.items())
+    return command(ioc, f"publish {stamp!r} {pairs}")
+
+
+def ca_lines(ioc: IocProcess, *names: str) -> dict[str, list[str]]:
+    """`caget -a -S` words after the name: date, time, value..., [STAT SEVR]."""
+    found = caget(ioc, "-a", "-S", *(ioc.pv(name) for name in names))
+    return {name: found[ioc.pv(name)].split() for name in names}
+
+
+def ca_time(stamp: float) -> str:
+    """How caget -a prints the time of `stamp` (local time, microseconds)."""
+    return datetime.fromtimestamp(stamp).strftime("%Y-%m-%d %H:%M:%S.%f")
+
+
+def pva_get(ioc: IocProcess, *names: str) -> dict[str, dict[str, Any]]:
+    with ioc.p4p_context() as context:
+        values: Any = context.get([ioc.pv(name) for name in names], timeout=10)
+    return {
+        name: getattr(value, "raw", value).todict()
+        for name, value in zip(names, values, strict=True)
+    }
+
+
+def pva_stamp(value: dict[str, Any]) -> float:
+    stamp = value["timeStamp"]
+    return stamp["secondsPastEpoch"] + stamp["nanoseconds"] * 1e-9
+
+
+def test_a_batch_posts_every_value_at_the_time_of_its_read(ioc: IocProcess) -> None:
+    stamp = math.floor(time.time()) - 10.25
+    posted = publish(
+        ioc, stamp, Temperature="21.5", Counts="7", Flag="1", Mode="RUN", Text="hi"
+    )
+    on_ca = ca_lines(ioc, *NAMES)
+    on_pva = pva_get(ioc, *NAMES)
+
+    assert posted == 5
+    assert {name: words[2] for name, words in on_ca.items()} == {
+        "Temperature": "21.5",
+        "Counts": "7",
+        "Flag": "True",
+        "Mode": "RUN",
+        "Text": "hi",
+    }
+    assert {" ".join(words[:2]) for words in on_ca.values()} == {ca_time(stamp)}
+    assert all(len(words) == 3 for words in on_ca.values()), on_ca  # no alarm
+    assert on_pva["Temperature"]["value"] == 21.5
+    assert on_pva["Counts"]["value"] == 7
+    assert on_pva["Mode"]["value"]["index"] == 1
+    assert {round(pva_stamp(v), 6) for v in on_pva.values()} == {stamp}
+
+
+def test_pva_clients_see_the_newest_value_when_they_connect(ioc: IocProcess) -> None:
+    """No client: the cycles' values wait in the IOC; a get, a monitor that
+    starts later and one after the last client left all get the newest."""
+    now = time.time()
+    for step in range(5):
+        publish(ioc, now + step, Counts=str(100 + step))
+    fresh = pva_get(ioc, "Counts")["Counts"]
+    received: queue.Queue[tuple[int, float]] = queue.Queue()
+    with ioc.p4p_context() as context:
+        subscription = context.monitor(
+            ioc.pv("Counts"),
+            lambda value: received.put((int(value), value.timestamp)),
+        )
+        first = received.get(timeout=10)
+        publish(ioc, now + 10, Counts="200")
+        second = received.get(timeout=10)
+        subscription.close()
+    time.sleep(0.5)  # the server sees the last client go
+    publish(ioc, now + 20, Counts="300")
+    after = pva_get(ioc, "Counts")["Counts"]
+
+    assert (fresh["value"], round(pva_stamp(fresh), 6)) == (104, round(now + 4, 6))
+    assert first[0] == 104 and round(first[1], 6) == round(now + 4, 6)
+    assert second[0] == 200
+    assert (after["value"], round(pva_stamp(after), 6)) == (300, round(now + 20, 6))
+
+
+def test_an_alarm_lands_on_the_newest_value(ioc: IocProcess) -> None:
+    publish(ioc, time.time(), Temperature="5.25")
+    command(ioc, "alarm Temperature INVALID COMM")
+    alarmed = pva_get(ioc, "Temperature")["Temperature"]
+    on_ca = ca_lines(ioc, "Temperature")["Temperature"]
+    command(ioc, "clear Temperature")
+    cleared = pva_get(ioc, "Temperature")["Temperature"]
+
+    assert alarmed["value"] == 5.25
+    assert alarmed["alarm"]["severity"] == 3
+    assert on_ca[2:] == ["5.25", "COMM", "INVALID"], on_ca
+    assert cleared["value"] == 5.25 and cleared["alarm"]["severity"] == 0
+
+
+def test_a_value_that_fails_stops_no_other(ioc: IocProcess) -> None:
+    posted = publish(ioc, time.time(), Counts="5000", Temperature="1.5")
+    failures = [line for line in ioc.output if line.startswith("failure ")]
+
+    assert posted == 1
+    assert failures == ["failure Counts: Value 5000 is greater than maximum 1000\n"]
+    assert ca_lines(ioc, "Temperature")["Temperature"][2] == "1.5"
+
+
+def test_nan_is_undefined_on_ca_until_a_number_comes(ioc: IocProcess) -> None:
+    publish(ioc, time.time(), Temperature="nan")
+    undefined = ca_lines(ioc, "Temperature")["Temperature"]
+    publish(ioc, time.time(), Temperature="2.5")
+    defined = ca_lines(ioc, "Temperature")["Temperature"]
+
+    assert undefined[-2:] == ["UDF", "INVALID"], undefined
+    assert defined[2:] == ["2.5"], defined
+
+
+def test_processing_a_record_keeps_its_value_and_time(ioc: IocProcess) -> None:
+    """A client's PROC runs softioc's own processing: it must show what the
+    direct writes wrote, not an older value."""
+    stamp = math.floor(time.time()) - 3.5
+    publish(ioc, stamp, Counts="42")
+    publish(ioc, stamp + 1, Counts="43")
+    ioc.tool("caput", ioc.pv("Counts.PROC"), "1")
+    after = ca_lines(ioc, "Counts")["Counts"]
+
+    assert after[2] == "43"
+    assert " ".join(after[:2]) == ca_time(stamp + 1)
