@@ -193,13 +193,13 @@ def _named(pvs: dict[str, tuple[str, str]], access: str, source: str) -> str:
 def _check_outputs(
     ioc: IocProcess, sim: SimProcess, pvs: dict[str, tuple[str, str]]
 ) -> None:
-    for symbol, value in (
-        ("Term 3 (EL4134).AO Output Channel 2", 1234),
-        ("Term 2 (EL2024).Channel 3", 1),
+    for symbol, value, counts in (
+        ("Term 3 (EL4134).AO Output Channel 2", 2.5, 8192),  # volts in, counts out
+        ("Term 2 (EL2024).Channel 3", 1, 1),
     ):
         pv = _named(pvs, "rw", symbol)
         ioc.tool("caput", "-c", pv, str(value))
-        assert wait_for(lambda s=symbol, v=value: sim.get_symbol(s) == v, 10), symbol
+        assert wait_for(lambda s=symbol, c=counts: sim.get_symbol(s) == c, 10), symbol
 
 
 def _check_coe(ioc: IocProcess, pvs: dict[str, tuple[str, str]]) -> None:
