@@ -87,6 +87,10 @@ class ChunkDecoder:
     previous_bits: npt.NDArray[np.uint64] | None = None
     converters: list[Any] = field(default_factory=list)
     bit_position: dict[int, int] = field(default_factory=dict)
+    single_bit: list[bool] = field(default_factory=list)
+    """Per bit field: one bit (its value a bool), else an int."""
+    fields: list[str] = field(default_factory=list)
+    """Per point: its field's name in `dtype`."""
 
     @classmethod
     def build(
@@ -101,8 +105,10 @@ class ChunkDecoder:
             offsets_in_item, dtype=np.intp
         )
         sizes = np.array([max(p.byte_size, 1) for p in points], dtype=np.intp)
+        names = [f"p{i}" for i in range(len(points))]
         fields = [
-            (f"p{i}", point_dtype(p), int(starts[i])) for i, p in enumerate(points)
+            (name, point_dtype(p), int(start))
+            for name, p, start in zip(names, points, starts.tolist(), strict=True)
         ]
         bits = [
             i for i, p in enumerate(points) if p.kind in (PointKind.BIT, PointKind.BITS)
@@ -128,6 +134,8 @@ class ChunkDecoder:
             answer_size=layout.size,
             converters=[_converter(p) for p in points],
             bit_position={p: n for n, p in enumerate(bits)},
+            single_bit=[points[i].bit_size <= 1 for i in bits],
+            fields=names,
         )
 
     def invalidate(self) -> None:
@@ -168,18 +176,15 @@ class ChunkDecoder:
         self.previous_results = results.copy()
         self.previous_bits = bit_values
         changes: list[tuple[Point, object]] = []
+        points, bit_position, single = self.points, self.bit_position, self.single_bit
+        bits: list[int] = bit_values.tolist()  # one conversion, not one per bit
         for i in np.flatnonzero(changed).tolist():
-            n = self.bit_position.get(i)
+            n = bit_position.get(i)
             if n is not None:
-                value = int(bit_values[n])
-                changes.append(
-                    (
-                        self.points[i],
-                        bool(value) if self.points[i].bit_size <= 1 else value,
-                    )
-                )
+                value = bits[n]
+                changes.append((points[i], bool(value) if single[n] else value))
             else:
-                changes.append((self.points[i], self.converters[i](view[f"p{i}"])))
+                changes.append((points[i], self.converters[i](view[self.fields[i]])))
         errors = [
             (self.points[i], int(point_results[i]))
             for i in np.flatnonzero(~ok).tolist()

@@ -442,6 +442,8 @@ class _InRecord:
         "device",
         "epics_value",
         "is_float",
+        "new_severity",
+        "new_status",
         "severity",
         "status",
         "time",
@@ -468,6 +470,8 @@ class _InRecord:
         self.udf = ctypes.c_uint8.from_address(base + offsets["UDF"][0])
         self.severity = ctypes.c_uint16.from_address(base + offsets["SEVR"][0])
         self.status = ctypes.c_uint16.from_address(base + offsets["STAT"][0])
+        self.new_severity = ctypes.c_uint16.from_address(base + offsets["NSEV"][0])
+        self.new_status = ctypes.c_uint16.from_address(base + offsets["NSTA"][0])
         self.is_float = value_type is ctypes.c_double
         self.to_record = to_record
         self.epics_value = value_type(device._value[0].value)
@@ -510,11 +514,14 @@ class _InRecord:
         post(self.address, self.value_address, mask)
 
     def _alarm(self, severity: int, status: int) -> int:
-        """Make (severity, status) the record's alarm; the monitor mask."""
+        """Make (severity, status) the record's alarm; the monitor mask.
+
+        NSEV/NSTA through views made once: softioc's field setter costs a
+        ctypes cast per write, and a status bit's alarm may change every cycle.
+        """
         self.device._value = (self.epics_value, severity, status, None)
-        fields = self.device._record
-        fields.NSEV = severity
-        fields.NSTA = status
+        self.new_severity.value = severity
+        self.new_status.value = status
         return _database_functions().reset_alarms(self.address)
 
 

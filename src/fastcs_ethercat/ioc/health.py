@@ -181,21 +181,32 @@ class Health:
         self, values: list[tuple[AttrR[Any, Any], Any]], failures: list[Failure]
     ) -> list[tuple[AttrR[Any, Any], Any]]:
         """`values`, each followed by its followers' values (theirs too)."""
+        followers = self._followers
         expanded: list[tuple[AttrR[Any, Any], Any]] = []
-
-        def add(attribute: AttrR[Any, Any], value: Any) -> None:
-            expanded.append((attribute, value))
-            for follower, convert in self._followers.get(id(attribute), ()):
-                try:
-                    converted = convert(value)
-                except Exception as error:  # one value must not stop the others
-                    failures.append((follower, error))
-                else:
-                    add(follower, converted)
-
         for attribute, value in values:
-            add(attribute, value)
+            expanded.append((attribute, value))
+            led = followers.get(id(attribute))
+            if led is not None:
+                self._add_followers(led, value, expanded, failures)
         return expanded
+
+    def _add_followers(
+        self,
+        led: list[tuple[AttrR[Any, Any], Convert]],
+        value: Any,
+        expanded: list[tuple[AttrR[Any, Any], Any]],
+        failures: list[Failure],
+    ) -> None:
+        for follower, convert in led:
+            try:
+                converted = convert(value)
+            except Exception as error:  # one value must not stop the others
+                failures.append((follower, error))
+                continue
+            expanded.append((follower, converted))
+            theirs = self._followers.get(id(follower))
+            if theirs is not None:
+                self._add_followers(theirs, converted, expanded, failures)
 
     async def _hold(
         self, attribute: AttrR[Any, Any], value: Any, stamp: float | None

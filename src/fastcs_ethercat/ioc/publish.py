@@ -16,7 +16,7 @@ severity from the datatype's table, status STATE; see `ioc.alarms`,
 from __future__ import annotations
 
 import time
-from collections.abc import Awaitable, Iterable
+from collections.abc import Awaitable, Callable, Iterable
 from typing import Any, Final, NamedTuple
 
 from fastcs.attributes import AttrR
@@ -41,9 +41,10 @@ class Published(NamedTuple):
     failures: list[Failure]
 
 
-_Route = tuple[ValueRoute, float, Any]
-"""An attribute's route, its deadband (0: none) and its datatype's severity
-table (None: no alarms)."""
+_Route = tuple[ValueRoute, Callable[[Any], Any], Callable[[Any, Any], bool], float, Any]
+"""An attribute's route, its datatype's validate and equal, its deadband (0:
+none) and its datatype's severity table (None: no alarms): looked up once,
+not per value (FastCS's `datatype` is a property)."""
 
 
 class Publisher:
@@ -99,22 +100,20 @@ class Publisher:
         try:
             for attribute, value in values:
                 try:
-                    datatype = attribute.datatype
-                    validated = datatype.validate(value)
                     entry = routes.get(id(attribute))
-                    if entry is None:
-                        band = self.deadbands.of_attribute(attribute)
-                        severity_of = severity_table(datatype)
-                        route = ValueRoute(attribute)
-                        routes[id(attribute)] = (route, band, severity_of)
+                    if entry is None:  # first value: posted even if equal
+                        validated = attribute.datatype.validate(value)
+                        entry = routes[id(attribute)] = self._route(attribute)
+                        route, _, _, _, severity_of = entry
                         made += 1
                     else:
-                        route, band, severity_of = entry
+                        route, validate, equal, band, severity_of = entry
+                        validated = validate(value)
                         if band:
                             if abs(validated - attribute.get()) <= band:
                                 self.within_deadband += 1
                                 continue
-                        elif datatype.equal(attribute.get(), validated):
+                        elif equal(attribute.get(), validated):
                             continue
                     if severity_of is None:
                         update = Update(validated, stamp)
@@ -139,6 +138,17 @@ class Publisher:
             except Exception as error:
                 failures.append((attribute, error))
         return Published(posted, failures)
+
+    def _route(self, attribute: AttrR[Any, Any]) -> _Route:
+        """What posting the attribute's values needs, looked up once."""
+        datatype = attribute.datatype
+        return (
+            ValueRoute(attribute),
+            datatype.validate,
+            datatype.equal,
+            self.deadbands.of_attribute(attribute),
+            severity_table(datatype),
+        )
 
     async def _update_each(
         self, values: Iterable[tuple[AttrR[Any, Any], Any]]
