@@ -137,12 +137,19 @@ class IocProcess:
 
 
 def start_ioc(
-    command: Sequence[str], prefix: str, env: dict[str, str], token: str
+    command: Sequence[str],
+    prefix: str,
+    env: dict[str, str],
+    token: str,
+    *,
+    commands: bool = False,
 ) -> IocProcess:
-    """Start `command` with stdout+stderr read into a queue by a thread."""
+    """Start `command` with stdout+stderr read into a queue by a thread;
+    `commands`: with a pipe to its stdin (test IOCs that take commands)."""
     process = subprocess.Popen(
         list(command),
         env=env,
+        stdin=subprocess.PIPE if commands else None,
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,
         text=True,

@@ -9,11 +9,9 @@ killed by PID, caRepeater included.
 from __future__ import annotations
 
 import json
-import queue
 import re
 import subprocess
 import sys
-import threading
 import time
 from collections.abc import Iterator, Sequence
 from typing import Any
@@ -48,6 +46,7 @@ from tests.ioc_support import (
     caget,
     ioc_env,
     new_token,
+    start_ioc,
     stop_pid,
     wait_for,
 )
@@ -139,28 +138,8 @@ def start_commanded_ioc(
 ) -> IocProcess:
     """tests/data/alarm_ioc.py with a pipe to its stdin for commands."""
     env = ioc_env(token)
-    process = subprocess.Popen(
-        [
-            sys.executable,
-            str(TEST_DATA / "alarm_ioc.py"),
-            "--prefix",
-            prefix,
-            *arguments,
-        ],
-        env=env,
-        stdin=subprocess.PIPE,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-    )
-    lines: queue.Queue[str] = queue.Queue()
-    assert process.stdout is not None
-    stdout = process.stdout
-    reader = threading.Thread(
-        target=lambda: [lines.put(x) for x in stdout], daemon=True
-    )
-    reader.start()
-    return IocProcess(process, prefix, env, token, lines, reader=reader)
+    command = [sys.executable, str(TEST_DATA / "alarm_ioc.py"), "--prefix", prefix]
+    return start_ioc([*command, *arguments], prefix, env, token, commands=True)
 
 
 def command(ioc: IocProcess, line: str) -> int:

@@ -25,7 +25,6 @@ from typing import Any
 
 import numpy as np
 import pytest
-import yaml
 
 import fastcs_ethercat
 from fastcs_ethercat.ioc.clients import ClientPool
@@ -46,6 +45,7 @@ from tests.ioc_support import (
     stop_pid,
     terminals_with_coe,
     wait_for,
+    write_ioc_config,
 )
 
 pytestmark = pytest.mark.e2e
@@ -111,20 +111,14 @@ def demo(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Demo]:
     work = tmp_path_factory.mktemp("demo")
     screens = work / "screens"
     with SimProcess(chain=DEMO_CHAIN, terminals=TERMINALS_DIR, env=env) as sim:
-        config = work / "ioc.yaml"
-        config.write_text(
-            yaml.safe_dump(
-                {
-                    "prefix": prefix,
-                    "target": sim.pyads_ip,
-                    "ams_net_id": sim.net_id,
-                    "poll_rate_hz": 20,
-                    "terminal_dirs": [
-                        str(terminals_with_coe(work / "terminals", [MISSING_TYPE]))
-                    ],
-                    "screens_dir": str(screens),
-                }
-            )
+        config = write_ioc_config(
+            work,
+            prefix,
+            sim.pyads_ip,
+            sim.net_id,
+            poll_rate_hz=20,
+            terminal_dirs=[str(terminals_with_coe(work / "terminals", [MISSING_TYPE]))],
+            screens_dir=str(screens),
         )
         figures: dict[str, float] = {}
         started = time.monotonic()

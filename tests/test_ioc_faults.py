@@ -17,7 +17,6 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-import yaml
 from fastcs.attributes import AttrR
 from fastcs.datatypes import Int
 
@@ -41,6 +40,7 @@ from tests.ioc_support import (
     served_ioc,
     terminals_with_coe,
     wait_for,
+    write_ioc_config,
 )
 
 DEMO_CHAIN = REPO_ROOT / "ioc" / "demo-chain.yaml"
@@ -171,20 +171,15 @@ class Rig:
 
 
 def _config(work: Path, sim: SimProcess, prefix: str) -> Path:
-    config = work / "ioc.yaml"
-    config.write_text(
-        yaml.safe_dump(
-            {
-                "prefix": prefix,
-                "target": sim.pyads_ip,
-                "ams_net_id": sim.net_id,
-                "poll_rate_hz": 20,
-                "terminal_dirs": [str(terminals_with_coe(work / "terminals"))],
-                "pv_aliases": {COE_PATH: "CoeOffset"},
-            }
-        )
+    return write_ioc_config(
+        work,
+        prefix,
+        sim.pyads_ip,
+        sim.net_id,
+        poll_rate_hz=20,
+        terminal_dirs=[str(terminals_with_coe(work / "terminals"))],
+        pv_aliases={COE_PATH: "CoeOffset"},
     )
-    return config
 
 
 @pytest.fixture(scope="module")

@@ -10,9 +10,7 @@ from __future__ import annotations
 
 import math
 import queue
-import subprocess
 import sys
-import threading
 import time
 from collections.abc import Iterator
 from datetime import datetime
@@ -27,6 +25,7 @@ from tests.ioc_support import (
     caget,
     ioc_env,
     new_token,
+    start_ioc,
     wait_for,
 )
 
@@ -40,22 +39,13 @@ def ioc() -> Iterator[IocProcess]:
     token = new_token()
     prefix = f"PUB{token[:6].upper()}"
     env = ioc_env(token)
-    process = subprocess.Popen(
+    started = start_ioc(
         [sys.executable, str(TEST_DATA / "publish_ioc.py"), "--prefix", prefix],
-        env=env,
-        stdin=subprocess.PIPE,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
+        prefix,
+        env,
+        token,
+        commands=True,
     )
-    lines: queue.Queue[str] = queue.Queue()
-    assert process.stdout is not None
-    stdout = process.stdout
-    reader = threading.Thread(
-        target=lambda: [lines.put(x) for x in stdout], daemon=True
-    )
-    reader.start()
-    started = IocProcess(process, prefix, env, token, lines, reader=reader)
     try:
         started.wait_for_line("publish ioc ready", START_TIMEOUT)
         first = started.pv("Counts")

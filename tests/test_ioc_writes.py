@@ -31,7 +31,7 @@ from p4p.client.thread import Context
 
 from fastcs_ethercat.sim.process import SimProcess
 from tests.conftest import REPO_ROOT
-from tests.ioc_support import IocProcess, caget, served_ioc, wait_for
+from tests.ioc_support import IocProcess, caget, served_ioc, wait_for, write_ioc_config
 
 pytestmark = pytest.mark.e2e
 
@@ -147,19 +147,9 @@ class Rig:
 
 
 def _config(work: Path, sim: SimProcess, prefix: str) -> Path:
-    config = work / "ioc.yaml"
-    config.write_text(
-        yaml.safe_dump(
-            {
-                "prefix": prefix,
-                "target": sim.pyads_ip,
-                "ams_net_id": sim.net_id,
-                "poll_rate_hz": 20,
-                "ads_timeout_ms": 300,
-            }
-        )
+    return write_ioc_config(
+        work, prefix, sim.pyads_ip, sim.net_id, poll_rate_hz=20, ads_timeout_ms=300
     )
-    return config
 
 
 @pytest.fixture(scope="module")
