@@ -317,6 +317,7 @@ def _write_and_check(
     the written symbol has the value if the put succeeded and not if it
     failed; every other output is as it was."""
     symbol = OUTPUTS[name]
+    answer = "(PVA put answered)"
     if isinstance(value, bool):
         answer = _put_with_callback(rig, name, "1" if value else "0")
         status = _put_status(answer)
@@ -340,7 +341,10 @@ def _write_and_check(
         tally.done += 1
         expected[symbol] = value
         if plc[symbol] != value:
-            tally.lacking.append(f"{symbol}={value!r}, PLC holds {plc[symbol]!r}")
+            tally.lacking.append(
+                f"{symbol}={value!r}, PLC holds {plc[symbol]!r}; the put's "
+                f"answer: {answer.splitlines()[-1]!r}; before: {tally.history[-5:]}"
+            )
     else:
         tally.failed += 1
         if plc[symbol] != expected[symbol]:
