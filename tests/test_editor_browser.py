@@ -47,7 +47,10 @@ if not ESI.is_dir():
     )
 
 from selenium import webdriver  # noqa: E402
-from selenium.common.exceptions import StaleElementReferenceException  # noqa: E402
+from selenium.common.exceptions import (  # noqa: E402
+    ElementClickInterceptedException,
+    StaleElementReferenceException,
+)
 from selenium.webdriver.chrome.options import Options  # noqa: E402
 from selenium.webdriver.chrome.service import Service  # noqa: E402
 from selenium.webdriver.common.by import By  # noqa: E402
@@ -152,13 +155,14 @@ def field(driver: Any, name: str) -> WebElement:
 
 def wait(check: Callable[[], bool], timeout: float = 20) -> None:
     """Until `check()`; an element replaced while it is read (the page redraws
-    a section after each choice) only means "look again"."""
+    a section after each choice), or covered for a moment while a section
+    grows, only means "look again"."""
     deadline = time.monotonic() + timeout
     while True:
         try:
             if check():
                 return
-        except StaleElementReferenceException:
+        except (StaleElementReferenceException, ElementClickInterceptedException):
             pass
         assert time.monotonic() < deadline, "timed out"
         time.sleep(0.1)
