@@ -315,3 +315,14 @@ def served_ioc(
             yield sim, ioc
         finally:
             ioc.stop()
+
+
+def command(ioc: IocProcess, line: str) -> int:
+    """Send one line to a test IOC that takes commands (`start_ioc(...,
+    commands=True)`); the number it answers with."""
+    assert ioc.process.stdin is not None
+    ioc.process.stdin.write(line + "\n")
+    ioc.process.stdin.flush()
+    answer = ioc.wait_for_line(r"^(done|failed) ", 30)
+    assert answer.startswith("done "), answer
+    return int(answer.split()[2])

@@ -44,6 +44,7 @@ from tests.ioc_support import (
     START_TIMEOUT,
     IocProcess,
     caget,
+    command,
     ioc_env,
     new_token,
     start_ioc,
@@ -140,16 +141,6 @@ def start_commanded_ioc(
     env = ioc_env(token)
     command = [sys.executable, str(TEST_DATA / "alarm_ioc.py"), "--prefix", prefix]
     return start_ioc([*command, *arguments], prefix, env, token, commands=True)
-
-
-def command(ioc: IocProcess, line: str) -> int:
-    """Send one command; the number the IOC answers with."""
-    assert ioc.process.stdin is not None
-    ioc.process.stdin.write(line + "\n")
-    ioc.process.stdin.flush()
-    answer = ioc.wait_for_line(r"^(done|failed) ", 30)
-    assert answer.startswith("done "), answer
-    return int(answer.split()[2])
 
 
 def ca_alarms(ioc: IocProcess, names: Sequence[str]) -> dict[str, str]:

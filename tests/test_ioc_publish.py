@@ -23,6 +23,7 @@ from tests.ioc_support import (
     START_TIMEOUT,
     IocProcess,
     caget,
+    command,
     ioc_env,
     new_token,
     start_ioc,
@@ -53,16 +54,6 @@ def ioc() -> Iterator[IocProcess]:
         yield started
     finally:
         started.stop()
-
-
-def command(ioc: IocProcess, line: str) -> int:
-    """Send one command; the number the IOC answers with."""
-    assert ioc.process.stdin is not None
-    ioc.process.stdin.write(line + "\n")
-    ioc.process.stdin.flush()
-    answer = ioc.wait_for_line(r"^(done|failed) ", 30)
-    assert answer.startswith("done "), answer
-    return int(answer.split()[2])
 
 
 def publish(ioc: IocProcess, stamp: float, **values: str) -> int:
