@@ -16,13 +16,10 @@ from __future__ import annotations
 
 import asyncio
 from collections.abc import Awaitable, Callable
-from typing import Protocol, TypeVar
 
 from fastcs_ethercat.ads.client import AdsClient
 from fastcs_ethercat.ads.connection import AmsTcpConnection
 from fastcs_ethercat.ads.constants import ADS_TCP_PORT
-
-_T = TypeVar("_T")
 
 ClientFactory = Callable[[str, int], Awaitable[AdsClient]]
 """`await factory(net_id, ams_port)` -> an open client the factory owns."""
@@ -99,35 +96,3 @@ async def read_text(
     """Up to `max_size` bytes of a variable-length answer (names, strings);
     the caller cuts at the first NUL."""
     return await client.read(index_group, index_offset, max_size, exact=False)
-
-
-class BlockingReader(Protocol):
-    """One ADS read from a worker thread (inside `in_one_job`)."""
-
-    def __call__(
-        self, index_group: int, index_offset: int, size: int, *, exact: bool = True
-    ) -> bytes:
-        """`size` bytes (`exact`), or up to `size` (names, strings); raises
-        `AdsError` as `AdsClient.read` would."""
-        ...
-
-
-async def in_one_job(
-    client: AdsClient, operation: str, work: Callable[[BlockingReader], _T]
-) -> _T:
-    """Run `work` on a worker thread with a blocking reader over `client`.
-
-    For code written as a series of blocking reads; each read is the
-    client's own coroutine, run on this loop. New code should await
-    `client.read` directly (several at once with `asyncio.gather`).
-    """
-    loop = asyncio.get_running_loop()
-
-    def read(
-        index_group: int, index_offset: int, size: int, *, exact: bool = True
-    ) -> bytes:
-        return asyncio.run_coroutine_threadsafe(
-            client.read(index_group, index_offset, size, exact=exact), loop
-        ).result()
-
-    return await asyncio.to_thread(work, read)

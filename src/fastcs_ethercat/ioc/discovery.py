@@ -10,6 +10,7 @@ device's symbols (port 27904 + id) are then resolved into points by
 
 from __future__ import annotations
 
+import asyncio
 import logging
 from dataclasses import dataclass
 
@@ -36,12 +37,7 @@ from fastcs_ethercat.ads.ethercat import (
     decode_slave_states,
 )
 from fastcs_ethercat.errors import UserError
-from fastcs_ethercat.ioc.clients import (
-    BlockingReader,
-    ClientFactory,
-    in_one_job,
-    read_text,
-)
+from fastcs_ethercat.ioc.clients import ClientFactory, read_text
 from fastcs_ethercat.ioc.config import IocConfig
 from fastcs_ethercat.ioc.plan import MasterPlan, SlaveInfo, SystemPlan
 from fastcs_ethercat.ioc.resolve import resolve_master
@@ -55,6 +51,10 @@ SLAVE_TYPE_SUBINDEX = 2
 SLAVE_NAME_SUBINDEX = 3
 TEXT_SIZE = 255
 """Longest name or type read (the answer is cut at its first NUL)."""
+READS_IN_FLIGHT = 16
+"""Slaves whose identity, name and type are read at the same time (ADS
+matches answers to requests by invoke id; a window keeps the router's queue
+short)."""
 COUPLER_GROUP_TYPES = frozenset({"SystemBk", "Coupler", "BusCoupler"})
 """ESI group types of bus couplers (EK1100's is SystemBk)."""
 
@@ -100,8 +100,9 @@ async def read_slaves(
     """The master's slaves in bus order, with names and the coupler tree.
 
     Count, addresses and states come in one read each; then three small reads
-    per slave (identity, TwinCAT name, type), run as one job on the client's
-    worker so a long chain costs round trips only, not thread hops as well.
+    per slave (identity, TwinCAT name, type), up to `READS_IN_FLIGHT` slaves
+    at a time: one after the other, a long chain cost a round trip per read
+    (312 for 104 terminals, a quarter of a second against the simulator).
     """
     count = decode_slave_count(await master.read(EtherCatMasterGroup.SLAVE_COUNT, 0, 2))
     if count == 0:
@@ -112,13 +113,14 @@ async def read_slaves(
     states = decode_slave_states(
         await master.read(EtherCatMasterGroup.SLAVE_STATES, 0, 2 * count)
     )
-    described = await in_one_job(
-        master,
-        f"identities and names of {len(addresses)} slaves",
-        lambda read: [
-            _describe_slave(read, position, address)
-            for position, address in enumerate(addresses)
-        ],
+    window = asyncio.Semaphore(READS_IN_FLIGHT)
+
+    async def describe(position: int, address: int) -> _Described:
+        async with window:
+            return await _describe_slave(master, position, address)
+
+    described = await asyncio.gather(
+        *(describe(position, address) for position, address in enumerate(addresses))
     )
     slaves: list[SlaveInfo] = []
     coupler: str | None = None
@@ -146,19 +148,21 @@ async def read_slaves(
     return slaves
 
 
-def _describe_slave(
-    read: BlockingReader, position: int, address: int
-) -> tuple[int, SlaveIdentity, str, str]:
-    """(address, identity, name, type) of one slave, on the client's worker."""
+_Described = tuple[int, SlaveIdentity, str, str]
+"""(address, identity, TwinCAT name, type) of one slave."""
+
+
+async def _describe_slave(master: AdsClient, position: int, address: int) -> _Described:
+    """(address, identity, name, type) of one slave."""
     identity = SlaveIdentity.decode(
-        read(EtherCatMasterGroup.SLAVE_IDENTITY, address, 16)
+        await master.read(EtherCatMasterGroup.SLAVE_IDENTITY, address, 16)
     )
-    name, type_name = _slave_name_and_type(read, position, address)
+    name, type_name = await _slave_name_and_type(master, position, address)
     return address, identity, name, type_name
 
 
-def _slave_name_and_type(
-    read: BlockingReader, position: int, address: int
+async def _slave_name_and_type(
+    master: AdsClient, position: int, address: int
 ) -> tuple[str, str]:
     """TwinCAT's name and type of slave `position` from the master's CoE.
 
@@ -169,19 +173,13 @@ def _slave_name_and_type(
     index = SLAVE_INFO_INDEX + position
     try:
         name = decode_device_name(
-            read(
-                IndexGroup.COE_SDO,
-                index << 16 | SLAVE_NAME_SUBINDEX,
-                TEXT_SIZE,
-                exact=False,
+            await read_text(
+                master, IndexGroup.COE_SDO, index << 16 | SLAVE_NAME_SUBINDEX, TEXT_SIZE
             )
         )
         type_name = decode_device_name(
-            read(
-                IndexGroup.COE_SDO,
-                index << 16 | SLAVE_TYPE_SUBINDEX,
-                TEXT_SIZE,
-                exact=False,
+            await read_text(
+                master, IndexGroup.COE_SDO, index << 16 | SLAVE_TYPE_SUBINDEX, TEXT_SIZE
             )
         )
     except AdsError as error:
