@@ -207,10 +207,12 @@ class AccessSecurity(Transport):
     async def serve(self) -> None:
         """Nothing to serve: EPICS enforces the rules from iocInit on.
 
-        The CA transport, listed before, ran iocInit in its first step, so the
-        generated read-only ACF has been read and can go.
+        Once the CA transport, listed before, has run iocInit, the generated
+        read-only ACF has been read and can go.
         """
-        await asyncio.sleep(0)
+        from fastcs_ethercat.ioc.fastcs_adapter import ca_initialised
+
+        await ca_initialised()
         if self._scratch is not None:
             shutil.rmtree(self._scratch, ignore_errors=True)
             self._scratch = None

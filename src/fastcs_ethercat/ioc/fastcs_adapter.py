@@ -56,6 +56,7 @@ IOC stops with one line naming the package and version.
 
 from __future__ import annotations
 
+import asyncio
 import ctypes
 import enum
 import functools
@@ -66,7 +67,14 @@ import importlib.util
 import sys
 import time
 import types
-from collections.abc import Awaitable, Callable, Iterable, Iterator, Sequence
+from collections.abc import (
+    Awaitable,
+    Callable,
+    Iterable,
+    Iterator,
+    Mapping,
+    Sequence,
+)
 from contextlib import contextmanager
 from dataclasses import dataclass
 from importlib.machinery import ModuleSpec
@@ -78,6 +86,7 @@ from fastcs_ethercat.errors import UserError
 
 if TYPE_CHECKING:  # FastCS is imported the lean way (`import_ioc_modules`)
     from fastcs.attributes import Attribute, AttrR
+    from fastcs.transports import Transport
 
 TESTED: Final = {
     "fastcs": ((0, 14, 4), (0, 15)),
@@ -865,6 +874,103 @@ def set_callback_queue_size(entries: int) -> None:
     callbackSetQueueSize(entries)
 
 
+_ca_initialised: asyncio.Future[None] | None = None
+"""Done once this process's iocInit has returned (softioc inits once)."""
+_ca_records_initialised: asyncio.Future[None] | None = None
+"""Done once iocInit has initialised every record (its Python part)."""
+_HOOK_RECORDS_DONE: Final = b"initHookAfterFinishDevSup"
+"""The init hook announced after every record's device support has
+initialised, just before iocBuild's fixed sleep."""
+_init_hooks: list[Any] = []
+"""The ctypes callbacks registered with EPICS (kept alive)."""
+
+
+def _announce_records_initialised(loop: asyncio.AbstractEventLoop) -> None:
+    """Have EPICS's init hook resolve `_ca_records_initialised` (public
+    `initHookRegister`; the state found by `initHookName`, not its number)."""
+    from epicscorelibs.ioc import dbCore
+
+    name_of = dbCore.initHookName
+    name_of.argtypes = (ctypes.c_int,)
+    name_of.restype = ctypes.c_char_p
+
+    @ctypes.CFUNCTYPE(None, ctypes.c_int)
+    def hook(state: int) -> None:
+        done = _ca_records_initialised
+        if done is not None and name_of(state) == _HOOK_RECORDS_DONE:
+            loop.call_soon_threadsafe(_resolve, done)
+
+    register = dbCore.initHookRegister
+    register.argtypes = (ctypes.c_void_p,)
+    register.restype = ctypes.c_int
+    if register(ctypes.cast(hook, ctypes.c_void_p)) == 0:
+        _init_hooks.append(hook)
+
+
+def _resolve(future: asyncio.Future[None]) -> None:
+    if not future.done():
+        future.set_result(None)
+
+
+def ca_transport(aliases: Mapping[str, str]) -> Transport:
+    """FastCS's CA transport, its `serve` running iocInit in a worker thread.
+
+    EPICS base's `iocBuild` sleeps 0.5 s (a fixed `epicsThreadSleep(.5)`
+    after `scanInit`), and FastCS calls iocInit on the event loop: a quarter
+    of a 104-terminal start did nothing. iocInit is a ctypes call that
+    releases the GIL, so in a thread the PVA transport (`pva_transport`)
+    builds its PVs during the sleep, once the records' Python device support
+    has initialised (before, the two would share the GIL and stretch the
+    part before the sleep). Await `ca_initialised()` before touching the
+    records or saying the IOC serves.
+    """
+    from fastcs.transports.epics import EpicsCAOptions
+    from fastcs.transports.epics.ca.transport import EpicsCATransport
+
+    class ThreadedInitCATransport(EpicsCATransport):
+        async def serve(self) -> None:
+            global _ca_initialised, _ca_records_initialised
+            loop = asyncio.get_running_loop()
+            _ca_initialised = done = loop.create_future()
+            _ca_records_initialised = records = loop.create_future()
+            if not _init_hooks:
+                _announce_records_initialised(loop)
+            try:
+                await asyncio.to_thread(self._ioc.run, self._loop)  # pyright: ignore[reportPrivateUsage]
+            except BaseException as error:
+                done.set_exception(error)
+                _resolve(records)
+                raise
+            _resolve(records)
+            done.set_result(None)
+
+        def __repr__(self) -> str:
+            return f"ThreadedInit{super().__repr__()}"
+
+    return ThreadedInitCATransport(epicsca=EpicsCAOptions(aliases=dict(aliases)))
+
+
+def pva_transport() -> Transport:
+    """FastCS's PVA transport, building its PVs once iocInit (if CA serves)
+    has initialised the records and sleeps (see `ca_transport`)."""
+    from fastcs.transports.epics.pva.transport import EpicsPVATransport
+
+    class AfterCaRecordsPVATransport(EpicsPVATransport):
+        async def serve(self) -> None:
+            if _ca_records_initialised is not None:
+                await asyncio.shield(_ca_records_initialised)
+            await super().serve()
+
+    return AfterCaRecordsPVATransport()
+
+
+async def ca_initialised() -> None:
+    """Once iocInit has returned (at once without a CA transport serving);
+    call from a transport's `serve`, which starts after the CA one's."""
+    if _ca_initialised is not None:
+        await asyncio.shield(_ca_initialised)
+
+
 # -- epicsdbbuilder ------------------------------------------------------------
 
 _PASSED: Final = "_fastcs_ethercat_passed"
@@ -1109,6 +1215,13 @@ def shape_problems() -> list[str]:
             for name in names
             if not hasattr(sample, name)
         ]
+    from fastcs.transports.epics.ca.ioc import EpicsCAIOC
+    from fastcs.transports.epics.ca.transport import EpicsCATransport
+
+    if "_ioc" not in EpicsCATransport.serve.__code__.co_names or not callable(
+        getattr(EpicsCAIOC, "run", None)
+    ):
+        problems.append("fastcs: EpicsCATransport.serve no longer runs _ioc.run")
     return problems + _softioc_problems() + _epicsdbbuilder_problems()
 
 

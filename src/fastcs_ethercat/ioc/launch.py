@@ -4,7 +4,8 @@ FastCS's own `launch()` builds its controllers from a YAML schema of their
 `__init__`; our tree comes from the live symbol table instead, so this module
 builds the transports itself and runs `FastCS` directly:
 
-- CA: `EpicsCATransport` (softioc records; the callback queue is enlarged
+- CA: `EpicsCATransport` (softioc records, iocInit in a worker thread while
+  the PVA side builds: `fastcs_adapter.ca_transport`; the callback queue is enlarged
   before iocInit, because every changed value of every record queues one
   callback and the EPICS default of 2000 overflows on a large rack),
 - PVA: `EpicsPVATransport` (p4p), which also serves the PVI structure
@@ -60,12 +61,9 @@ def build_transports(options: LaunchOptions) -> list[Transport]:
     """The FastCS transports for `options` (imports softioc only for CA)."""
     transports: list[Transport] = []
     if options.ca:
-        from fastcs.transports.epics import EpicsCAOptions
-        from fastcs.transports.epics.ca.transport import EpicsCATransport
+        from fastcs_ethercat.ioc.fastcs_adapter import ca_transport
 
-        transports.append(
-            EpicsCATransport(epicsca=EpicsCAOptions(aliases=dict(options.ca_aliases)))
-        )
+        transports.append(ca_transport(options.ca_aliases))
         if options.access_security_file is not None or options.read_only:
             from fastcs_ethercat.ioc.access import AccessSecurity, access_group_of
 
@@ -77,9 +75,9 @@ def build_transports(options: LaunchOptions) -> list[Transport]:
                 )
             )
     if options.pva:
-        from fastcs.transports.epics.pva.transport import EpicsPVATransport
+        from fastcs_ethercat.ioc.fastcs_adapter import pva_transport
 
-        transports.append(EpicsPVATransport())
+        transports.append(pva_transport())
     return transports
 
 
@@ -139,9 +137,10 @@ class _Announce(Transport):
     the real transports serve.
 
     FastCS connects every transport after the root's `initialise()`, then
-    gathers their `serve()` in order: CA runs iocInit and PVA starts its p4p
-    server in their first step, so once this last one has yielded a few
-    times, both are up.
+    gathers their `serve()` in order: CA starts iocInit in a worker thread
+    (`fastcs_adapter.ca_transport`) and PVA builds its PVs and starts its
+    p4p server in their first step; once iocInit has returned and this last
+    one has yielded a few times, both are up.
     """
 
     def __init__(
@@ -162,6 +161,9 @@ class _Announce(Transport):
             self.on_built()
 
     async def serve(self) -> None:
+        from fastcs_ethercat.ioc.fastcs_adapter import ca_initialised
+
+        await ca_initialised()
         for _ in range(3):
             await asyncio.sleep(0)
         print(ready_line("ioc", prefix=self.prefix), flush=True)  # the one print
