@@ -116,3 +116,39 @@ def test_ioc_without_a_config_says_what_to_give() -> None:
         "error: give the IOC configuration with --config FILE "
         "(`fastcs-ethercat ioc schema` prints its JSON schema)"
     ]
+
+
+def test_root_help_lists_every_command_in_order_and_typos_get_a_suggestion() -> None:
+    listed = [
+        line.split()[0] for line in _help().split("Commands:")[1].splitlines()[1:]
+    ]
+    typo = subprocess.run(
+        [sys.executable, "-m", "fastcs_ethercat", "terminal"],
+        capture_output=True,
+        text=True,
+    )
+
+    names = ["demo", "sim", "bench", "terminals", "ioc", "chain"]
+    assert listed == names
+    assert typo.returncode == 2
+    assert "Did you mean 'terminals'?" in typo.stderr
+
+
+def test_the_ioc_command_imports_neither_esi_parser_nor_terminal_commands() -> None:
+    """Groups of commands are imported when named: `ioc` pays for its own."""
+    probe = """
+import sys
+from fastcs_ethercat.cli import app
+sys.argv = ["fastcs-ethercat", "ioc"]  # no --config: a one-line error
+try:
+    app()
+except SystemExit as exit:
+    unused = ("fastcs_ethercat.cli.terminals", "fastcs_ethercat.esi",
+              "fastcs_ethercat.terminals.generate", "rich")
+    print(exit.code, *(name in sys.modules for name in unused))
+"""
+    done = subprocess.run(
+        [sys.executable, "-c", probe], capture_output=True, text=True, check=False
+    )
+
+    assert done.stdout.split() == ["2", "False", "False", "False", "False"], done.stderr

@@ -2,35 +2,70 @@
 
 Each command lives in its own module; this module only assembles them, sets
 up logging (`--log-level` here or on any command) and turns `UserError` into
-a one-line message and a non-zero exit code.
+a one-line message and a non-zero exit code. The command groups' modules are
+imported only when their group is named (or listed by `--help`): the IOC's
+start does not pay for the ESI parser, terminal generation and rich.
 """
 
 from __future__ import annotations
 
+import importlib
 import sys
+from typing import TYPE_CHECKING, Any, Final
 
 import typer
+from typer.core import TyperCommand, TyperGroup
 
 from fastcs_ethercat import __version__
 from fastcs_ethercat.cli.bench import bench_command
-from fastcs_ethercat.cli.chain import chain_app
-from fastcs_ethercat.cli.ioc import demo_command, ioc_app
+from fastcs_ethercat.cli.ioc import demo_command
 from fastcs_ethercat.cli.options import (
     DEFAULT_LOG_LEVEL,
     LogLevelOption,
     plain_typer,
 )
 from fastcs_ethercat.cli.sim import sim_command
-from fastcs_ethercat.cli.terminals import terminals_app
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.logs import setup_logging
 
+if TYPE_CHECKING:  # Typer vendors Click; its groups' methods take these types
+    from typer._click import Command, Context
+
+COMMAND_GROUPS: Final = {
+    "terminals": ("fastcs_ethercat.cli.terminals", "terminals_app"),
+    "ioc": ("fastcs_ethercat.cli.ioc", "ioc_app"),
+    "chain": ("fastcs_ethercat.cli.chain", "chain_app"),
+}
+"""Command group name -> (module, Typer app); `--help` lists them in this
+order, after the single commands."""
+
+
+class _NotImported(TyperCommand):
+    """Stands in for a command group until it is asked for."""
+
+
+class _LazyGroups(TyperGroup):
+    """The root command: a group of `COMMAND_GROUPS` is imported when asked for
+    (to run or for `--help`); a typo's suggestion needs only the names."""
+
+    def __init__(self, *args: Any, **attrs: Any) -> None:
+        super().__init__(*args, **attrs)
+        for name in COMMAND_GROUPS:
+            self.commands[name] = _NotImported(name)
+
+    def get_command(self, ctx: Context, cmd_name: str) -> Command | None:
+        if isinstance(self.commands.get(cmd_name), _NotImported):
+            module, attribute = COMMAND_GROUPS[cmd_name]
+            app: typer.Typer = getattr(importlib.import_module(module), attribute)
+            self.commands[cmd_name] = typer.main.get_group(app)
+        return super().get_command(ctx, cmd_name)
+
+
 _typer_app = plain_typer(
-    "Beckhoff EtherCAT terminals under TwinCAT as EPICS PVs.", no_args_is_help=True
+    "Beckhoff EtherCAT terminals under TwinCAT as EPICS PVs.",
+    no_args_is_help=True,
+    cls=_LazyGroups,
 )
-_typer_app.add_typer(terminals_app, name="terminals")
-_typer_app.add_typer(ioc_app, name="ioc")
-_typer_app.add_typer(chain_app, name="chain")
 _typer_app.command("demo")(demo_command)
 _typer_app.command("sim")(sim_command)
 _typer_app.command("bench")(bench_command)

@@ -4,8 +4,9 @@ Commands: list, show, generate, regenerate, select-group, select, coe,
 units, severity, import, edit, check, schema, update-cache. The choices
 (select-group, select, coe, units, severity) are the functions of
 `terminals.selection` the editor calls too. Modules only some commands need
-(the comment keeper, catio import, the editor) are imported inside them:
-every `fastcs-ethercat ioc` start imports this module. Results go to stdout;
+(the comment keeper, catio import, the editor) are imported inside them;
+this module itself is imported only for a `terminals` command (see
+`cli.COMMAND_GROUPS`). Results go to stdout;
 progress bars go to stderr; user errors are raised as `UserError` (one
 line, exit code 2, printed by the root app).
 """

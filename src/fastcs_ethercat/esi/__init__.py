@@ -11,27 +11,69 @@ Typical use::
 lookup, `files` the per-document parser, `groups` the PDO-group rules.
 """
 
-from .catalog import EsiCatalog, EsiParseResult, build_catalog, load_device, parse_all
-from .channels import channel_template
-from .files import EsiFileResult, parse_document, parse_file
-from .model import (
-    CatalogEntry,
-    EsiCoeObject,
-    EsiCoeSubItem,
-    EsiDataType,
-    EsiDataTypeSubItem,
-    EsiDcOpMode,
-    EsiDcOpModePdo,
-    EsiDevice,
-    EsiEntry,
-    EsiEnumItem,
-    EsiHideType,
-    EsiOversampling,
-    EsiPdo,
-    EsiPdoGroup,
-    EsiSyncManager,
-    parse_esi_int,
-)
+from typing import TYPE_CHECKING, Final
+
+from fastcs_ethercat.lazy_exports import lazy_exports
+
+if TYPE_CHECKING:
+    from .catalog import (
+        EsiCatalog,
+        EsiParseResult,
+        build_catalog,
+        load_device,
+        parse_all,
+    )
+    from .channels import channel_template
+    from .files import EsiFileResult, parse_document, parse_file
+    from .model import (
+        CatalogEntry,
+        EsiCoeObject,
+        EsiCoeSubItem,
+        EsiDataType,
+        EsiDataTypeSubItem,
+        EsiDcOpMode,
+        EsiDcOpModePdo,
+        EsiDevice,
+        EsiEntry,
+        EsiEnumItem,
+        EsiHideType,
+        EsiOversampling,
+        EsiPdo,
+        EsiPdoGroup,
+        EsiSyncManager,
+        parse_esi_int,
+    )
+
+_EXPORTS: Final = {
+    "EsiCatalog": "catalog",
+    "EsiParseResult": "catalog",
+    "build_catalog": "catalog",
+    "load_device": "catalog",
+    "parse_all": "catalog",
+    "channel_template": "channels",
+    "EsiFileResult": "files",
+    "parse_document": "files",
+    "parse_file": "files",
+    "CatalogEntry": "model",
+    "EsiCoeObject": "model",
+    "EsiCoeSubItem": "model",
+    "EsiDataType": "model",
+    "EsiDataTypeSubItem": "model",
+    "EsiDcOpMode": "model",
+    "EsiDcOpModePdo": "model",
+    "EsiDevice": "model",
+    "EsiEntry": "model",
+    "EsiEnumItem": "model",
+    "EsiHideType": "model",
+    "EsiOversampling": "model",
+    "EsiPdo": "model",
+    "EsiPdoGroup": "model",
+    "EsiSyncManager": "model",
+    "parse_esi_int": "model",
+}
+"""Public name -> the submodule it lives in, imported when first used: a user
+of the dataclasses does not import the parser."""
+__getattr__ = lazy_exports(__name__, _EXPORTS)
 
 __all__ = [
     "CatalogEntry",

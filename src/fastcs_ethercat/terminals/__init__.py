@@ -17,36 +17,74 @@ Public API:
 - `expanded_symbols(terminal)`: per-channel I/O symbols for IOC and simulator.
 """
 
-from fastcs_ethercat.terminals.files import (
-    read_terminal_file,
-    terminal_file_name,
-    terminal_file_text,
-    write_terminal_file,
-)
-from fastcs_ethercat.terminals.generate import terminal_from_esi
-from fastcs_ethercat.terminals.loader import load_terminals, terminal_paths
-from fastcs_ethercat.terminals.merge import ChangeReport, merge_terminal
-from fastcs_ethercat.terminals.model import (
-    CoeObject,
-    CoeSubItem,
-    Identity,
-    Oversampling,
-    PdoGroup,
-    SymbolMember,
-    SymbolNode,
-    TerminalType,
-)
-from fastcs_ethercat.terminals.registry import (
-    RegisteredTerminal,
-    RegistryMatch,
-    TerminalRegistry,
-)
-from fastcs_ethercat.terminals.selection import UnknownGroupError, select_group
-from fastcs_ethercat.terminals.symbols import (
-    ExpandedMember,
-    ExpandedSymbol,
-    expanded_symbols,
-)
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Final
+
+from fastcs_ethercat.lazy_exports import lazy_exports
+
+if TYPE_CHECKING:
+    from fastcs_ethercat.terminals.files import (
+        read_terminal_file,
+        terminal_file_name,
+        terminal_file_text,
+        write_terminal_file,
+    )
+    from fastcs_ethercat.terminals.generate import terminal_from_esi
+    from fastcs_ethercat.terminals.loader import load_terminals, terminal_paths
+    from fastcs_ethercat.terminals.merge import ChangeReport, merge_terminal
+    from fastcs_ethercat.terminals.model import (
+        CoeObject,
+        CoeSubItem,
+        Identity,
+        Oversampling,
+        PdoGroup,
+        SymbolMember,
+        SymbolNode,
+        TerminalType,
+    )
+    from fastcs_ethercat.terminals.registry import (
+        RegisteredTerminal,
+        RegistryMatch,
+        TerminalRegistry,
+    )
+    from fastcs_ethercat.terminals.selection import UnknownGroupError, select_group
+    from fastcs_ethercat.terminals.symbols import (
+        ExpandedMember,
+        ExpandedSymbol,
+        expanded_symbols,
+    )
+
+_EXPORTS: Final = {
+    "read_terminal_file": "files",
+    "terminal_file_name": "files",
+    "terminal_file_text": "files",
+    "write_terminal_file": "files",
+    "terminal_from_esi": "generate",
+    "load_terminals": "loader",
+    "terminal_paths": "loader",
+    "ChangeReport": "merge",
+    "merge_terminal": "merge",
+    "CoeObject": "model",
+    "CoeSubItem": "model",
+    "Identity": "model",
+    "Oversampling": "model",
+    "PdoGroup": "model",
+    "SymbolMember": "model",
+    "SymbolNode": "model",
+    "TerminalType": "model",
+    "RegisteredTerminal": "registry",
+    "RegistryMatch": "registry",
+    "TerminalRegistry": "registry",
+    "UnknownGroupError": "selection",
+    "select_group": "selection",
+    "ExpandedMember": "symbols",
+    "ExpandedSymbol": "symbols",
+    "expanded_symbols": "symbols",
+}
+"""Public name -> the submodule it lives in, imported when first used: the
+IOC loads terminal YAML without importing generation and the ESI parser."""
+__getattr__ = lazy_exports(__name__, _EXPORTS)
 
 __all__ = [
     "ChangeReport",
