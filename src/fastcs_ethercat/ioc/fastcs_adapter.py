@@ -978,8 +978,9 @@ async def ca_initialised() -> None:
 
 _PASSED: Final = "_fastcs_ethercat_passed"
 """Attribute of a record type's validator: the (field, value)s that passed."""
-_POSITIONS: Final = "_fastcs_ethercat_positions"
-"""Attribute of a record type's validator: field name -> position in the walk."""
+_FIELD_ENTRIES: Final = "_fastcs_ethercat_field_entries"
+"""Attribute of a record type's validator: field name -> a database entry
+(cursor) kept on that field."""
 
 
 @functools.cache
@@ -987,30 +988,28 @@ def install_field_memo() -> None:
     """Check each (field, value) of a record type once (idempotent).
 
     `dbVerify`'s verdict depends only on the field's definition and the
-    value's text; a new value is verified with the cursor put on its field by
-    position, learnt once per record type; a value that fails is checked
-    again the library's way, so the error raised is the library's own.
+    value's text. The library walks its cursor over every field before the
+    one it checks, a ctypes call each (a third of creating the records); a
+    new value is verified instead on a cursor kept on its field, made once
+    per (record type, field). A value that fails is checked again the
+    library's way, so the error raised is the library's own.
     """
     from epicsdbbuilder import mydbstatic
-    from epicsdbbuilder.dbd import ValidateDbField
+    from epicsdbbuilder.dbd import DBEntry, ValidateDbField
 
     db: Any = mydbstatic  # its functions are bound at run time (ctypes)
     walk: Callable[[Any, str, Any], None] = ValidateDbField.ValidFieldValue
 
-    def on_field(self: Any, name: str) -> bool:
-        """Put the validator's cursor on field `name` by its position."""
-        positions: dict[str, int] | None = self.__dict__.get(_POSITIONS)
-        if positions is None:
-            fields = self.dbEntry.iterate_fields()
-            positions = {field: index for index, field in enumerate(fields)}
-            self.__dict__[_POSITIONS] = positions
-        position = positions.get(name)
-        if position is None:
-            return False
-        status = db.dbFirstField(self.dbEntry, 0)
-        for _ in range(position):
-            status = db.dbNextField(self.dbEntry, 0)
-        return status == 0
+    def field_entry(self: Any, name: str) -> Any:
+        """A cursor on field `name` of the validator's record type, or None."""
+        entries: dict[str, Any] = self.__dict__.setdefault(_FIELD_ENTRIES, {})
+        entry = entries.get(name)
+        if entry is None:
+            for field in self.dbEntry.iterate_fields():
+                if field == name:
+                    entry = entries[name] = DBEntry(self.dbEntry)  # a copy, kept
+                    break
+        return entry
 
     def valid_field_value(self: Any, name: str, value: Any) -> None:
         key = (name, str(value))
@@ -1018,7 +1017,8 @@ def install_field_memo() -> None:
         if key in known:
             return
         self.ValidFieldName(name)
-        if not on_field(self, name) or db.dbVerify(self.dbEntry, key[1]):
+        entry = field_entry(self, name)
+        if entry is None or db.dbVerify(entry, key[1]):
             walk(self, name, value)  # the library's own check raises its error
         known.add(key)
 
@@ -1294,11 +1294,15 @@ def _softioc_problems() -> list[str]:
 
 
 def _epicsdbbuilder_problems() -> list[str]:
+    from epicsdbbuilder import dbd
     from epicsdbbuilder.dbd import ValidateDbField
 
+    problems: list[str] = []
     if not callable(getattr(ValidateDbField, "ValidFieldValue", None)):
-        return ["epicsdbbuilder: ValidateDbField.ValidFieldValue is gone"]
-    return []
+        problems.append("epicsdbbuilder: ValidateDbField.ValidFieldValue is gone")
+    if not callable(getattr(dbd, "DBEntry", None)):
+        problems.append("epicsdbbuilder: dbd.DBEntry is gone")
+    return problems
 
 
 def check_installed() -> None:
