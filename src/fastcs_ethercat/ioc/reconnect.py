@@ -35,6 +35,8 @@ from fastcs_ethercat.terminals.registry import TerminalRegistry
 
 logger = logging.getLogger(__name__)
 
+CANCEL_AGAIN_S: Final = 0.1
+"""How long a cancelled task may take before it is cancelled again."""
 COE_REFRESH_WAIT_S: Final = 10.0
 """How long CoE values wait after a resync for the link to count as up."""
 COE_SLAVES_AT_ONCE: Final = 8
@@ -126,9 +128,7 @@ class Reconnection:
         """Stop supervising and polling and close every ADS connection."""
         await self._stop_polling()
         tasks, self._tasks = self._tasks, []
-        for task in tasks:
-            task.cancel()
-        await asyncio.gather(*tasks, return_exceptions=True)
+        await cancel_and_wait(tasks)
         await self.connection.pool.close()
 
     async def _start_polling(self) -> None:
@@ -292,3 +292,18 @@ def _point_keys(plan: SystemPlan, slaves: Collection[tuple[str, int]]) -> set[st
             if (master.name, terminal.slave.address) in slaves:
                 keys.update(p.key for p in terminal.points)
     return keys
+
+
+async def cancel_and_wait(tasks: Collection[asyncio.Task[Any]]) -> None:
+    """Cancel `tasks` and wait until every one has ended.
+
+    Python 3.11's `asyncio.wait_for` returns its result and drops the
+    cancellation when the task is cancelled just as the awaited thing
+    finishes (the supervisor's probe and wake-up wait): a task still running
+    is cancelled again, else a SIGTERM shortly after start could leave the
+    IOC running."""
+    pending = set(tasks)
+    while pending:
+        for task in pending:
+            task.cancel()
+        _, pending = await asyncio.wait(pending, timeout=CANCEL_AGAIN_S)
