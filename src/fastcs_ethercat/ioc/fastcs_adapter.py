@@ -44,6 +44,12 @@ anywhere else.
   `install_field_memo` replaces `ValidateDbField.ValidFieldValue` with one
   that remembers what passed per record type and falls back to the library's
   own check, so its error is the library's.
+- **iocInit in a worker thread.** EPICS base's `iocBuild` sleeps a fixed
+  0.5 s; FastCS runs iocInit on the event loop. `ca_transport` runs it in a
+  thread (a ctypes call: the GIL is released while EPICS sleeps) and
+  `pva_transport` builds the PVA PVs meanwhile, once EPICS's init hook says
+  every record's device support has initialised; `ca_initialised()` is
+  awaited before anything touches the records or says the IOC serves.
 - **Type hints once per controller class.** FastCS resolves a controller
   class's type hints twice for every instance; `install_type_hint_memo`
   resolves them once per class.
