@@ -84,6 +84,7 @@ from fastcs_ethercat.ads.sums import (
     chunked,
 )
 from fastcs_ethercat.ads.symbols import (
+    SYMBOL_INFO_SIZE,
     AdsSymbolEntry,
     SymbolUploadInfo,
     SymbolUploadInfo2,
@@ -101,8 +102,6 @@ DEFAULT_TIMEOUT_MS: Final = 5000
 """Timeout of a request when none is given (AdsLib's default)."""
 UPLOAD_INFO_2_SIZE: Final = 24
 UPLOAD_INFO_SIZE: Final = 8
-SYMBOL_INFO_SIZE: Final = 1024
-"""Read length of one 0xF009 answer (an entry with a long name and comment)."""
 DATA_TYPE_TABLE_LIMIT: Final = 16 * 1024 * 1024
 """Read length of a data-type table whose size the target did not tell."""
 
