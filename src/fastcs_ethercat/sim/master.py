@@ -23,6 +23,9 @@ from fastcs_ethercat.ads.constants import (
     IndexGroup,
 )
 from fastcs_ethercat.ads.ethercat import (
+    SLAVE_INFO_INDEX,
+    SLAVE_NAME_SUBINDEX,
+    SLAVE_TYPE_SUBINDEX,
     AlState,
     CrcCounters,
     FrameCounters,
@@ -43,7 +46,6 @@ MASTER_IDENTITY: Final = SlaveIdentity(
     vendor_id=2, product_code=0x00010003, revision=1844
 )
 """What the master's CoE 0x1018 reports (a real CX's EtherCAT device, catio dump)."""
-SLAVE_INFO_BASE: Final = 0x8000
 LOST: Final = LinkState.NOT_PRESENT
 """Link state of a slave the master cannot reach (EC_LINK_STATE_NOT_PRESENT)."""
 NEIGHBOUR_LOST: Final = LinkState.MISSING_LINK | LinkState.PORT_B
@@ -220,11 +222,11 @@ class EtherCatMaster:
                 identity.serial_number,
             )[subindex - 1]
             data = value.to_bytes(4, "little")
-        elif SLAVE_INFO_BASE <= index < SLAVE_INFO_BASE + len(self.slaves):
-            slave = self.slaves[index - SLAVE_INFO_BASE].slave
-            if subindex == 2:
+        elif SLAVE_INFO_INDEX <= index < SLAVE_INFO_INDEX + len(self.slaves):
+            slave = self.slaves[index - SLAVE_INFO_INDEX].slave
+            if subindex == SLAVE_TYPE_SUBINDEX:
                 data = encode_text(slave.type_name)
-            elif subindex == 3:
+            elif subindex == SLAVE_NAME_SUBINDEX:
                 data = encode_text(slave.name)
         if data is None:
             return AdsReturnCode.DEVICE_INVALID_OFFSET, b""
