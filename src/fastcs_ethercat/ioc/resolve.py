@@ -31,6 +31,7 @@ from fastcs_ethercat.ioc.plan import (
     SlaveInfo,
     TerminalPlan,
 )
+from fastcs_ethercat.logs import first_names
 from fastcs_ethercat.terminals.meaning import (
     SEVERITY_LEVELS,
     Scaling,
@@ -52,8 +53,6 @@ RUNTIME_ATTRIBUTES = {
     "WcState.InputToggle": "input_toggle",
 }
 """TwinCAT's per-terminal runtime symbols (not in the ESI) and their names."""
-SHOWN_DROPPED = 3
-"""Symbols a warning names before it says how many more there are."""
 
 Types = Mapping[str, AdsDataTypeEntry]
 NUMBER_KINDS = frozenset({PointKind.SCALAR, PointKind.ARRAY})
@@ -369,10 +368,7 @@ def _match_warning(
             f"{match.type_name} revision 0x{match.revision:08x}"
         )
     if dropped:
-        shown = ", ".join(repr(name) for name in dropped[:SHOWN_DROPPED])
-        more = len(dropped) - SHOWN_DROPPED
-        if more > 0:
-            shown += f" and {more} more"
+        shown = first_names([repr(name) for name in dropped])
         text += "; " if not match.exact else ""
         text += f"{len(dropped)} selected symbols not on the target, dropped: {shown}"
     if unknown:

@@ -58,7 +58,7 @@ from fastcs_ethercat.ioc.process_stats import ProcessStats
 from fastcs_ethercat.ioc.publish import Publisher
 from fastcs_ethercat.ioc.reconnect import Reconnection
 from fastcs_ethercat.ioc.supervisor import LinkState
-from fastcs_ethercat.logs import log_at_most
+from fastcs_ethercat.logs import first_names, log_at_most
 from fastcs_ethercat.terminals.registry import TerminalRegistry
 
 logger = logging.getLogger(__name__)
@@ -66,8 +66,6 @@ logger = logging.getLogger(__name__)
 STATS_PERIOD_S: Final = 1.0
 WARNINGS_SHOWN: Final = 15
 """Start-up warnings logged before one line says how many more there are."""
-NAMES_SHOWN: Final = 3
-"""Terminals a folded warning names before it counts the rest."""
 PROCESS_LEAVES: Final = (
     "Version",
     "StartTime",
@@ -427,10 +425,7 @@ def fold_by_terminal(warnings: Sequence[str], terminals: Collection[str]) -> lis
         if len(names) == 1:
             folded.append(f"{names[0]}: {text}")
             continue
-        shown = ", ".join(names[:NAMES_SHOWN])
-        if len(names) > NAMES_SHOWN:
-            shown += f" and {len(names) - NAMES_SHOWN} more"
-        folded.append(f"{len(names)} terminals ({shown}): {text}")
+        folded.append(f"{len(names)} terminals ({first_names(names)}): {text}")
     return folded
 
 
