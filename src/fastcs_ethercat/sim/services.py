@@ -51,6 +51,7 @@ from fastcs_ethercat.ads.sums import (
     SumWriteResponse,
 )
 from fastcs_ethercat.ads.wire import decode_text
+from fastcs_ethercat.sim.answers import Outcome, fit
 from fastcs_ethercat.sim.device import SimDevice
 from fastcs_ethercat.sim.itemfaults import item_error
 from fastcs_ethercat.sim.layout import AREAS, INPUTS, OUTPUTS, ImageArea
@@ -77,7 +78,6 @@ _SUM_GROUPS: Final = frozenset(
 )
 _U32: Final = struct.Struct("<I")
 
-Outcome = tuple[int, bytes]
 _Sum = TypeVar("_Sum", SumReadRequest, SumWriteRequest, SumReadWriteRequest)
 
 
@@ -90,13 +90,6 @@ class RunState:
     @property
     def ads_state(self) -> int:
         return int(AdsState.RUN if self.running else AdsState.STOP)
-
-
-def fit(data: bytes, length: int) -> Outcome:
-    """The answer to a read of `length` bytes: all of `data` if it fits."""
-    if length < len(data):
-        return AdsReturnCode.DEVICE_INVALID_SIZE, b""
-    return AdsReturnCode.NO_ERROR, data
 
 
 def request_name(data: bytes) -> str:
@@ -671,6 +664,5 @@ __all__ = [
     "RunState",
     "SlavePort",
     "SystemServicePort",
-    "fit",
     "request_name",
 ]
