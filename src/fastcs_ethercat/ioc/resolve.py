@@ -519,7 +519,7 @@ def _coe_point(
         subindex=subindex,
         type_name=item.type_name,
         bit_size=item.bit_size,
-        writable=(item.access or obj.access) in ("rw", "wo"),
+        writable=obj.access_of(item) in ("rw", "wo"),
         description=description,
         default=item.default_value or item.default_data or "",
         enum_texts=tuple((e.value, e.text) for e in item.enum),

@@ -184,12 +184,13 @@ def _store(obj: CoeObject) -> CoeObjectStore:
     entries: dict[int, CoeEntry] = {}
     end = 0
     for item, offset in zip(items, offsets, strict=True):
+        access = obj.access_of(item)
         entries[item.subindex] = CoeEntry(
             item.subindex,
             offset,
             item.bit_size,
-            item.access != "wo",
-            item.access in {"rw", "wo"},
+            access != "wo",
+            access in {"rw", "wo"},
             is_string=_is_string(item.type_name),
         )
         end = max(end, offset + item.bit_size)
