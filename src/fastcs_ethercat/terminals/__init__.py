@@ -1,6 +1,7 @@
 """Terminal YAML: models, load/save, registry, generation from ESI, regenerate.
 
-The YAML schema is documented in `fastcs_ethercat.terminals.model`.
+The YAML schema and its models (`TerminalType` and its parts) are in
+`fastcs_ethercat.terminals.model`, the one place to import them from.
 
 Public API:
 
@@ -33,16 +34,6 @@ if TYPE_CHECKING:
     from fastcs_ethercat.terminals.generate import terminal_from_esi
     from fastcs_ethercat.terminals.loader import load_terminals, terminal_paths
     from fastcs_ethercat.terminals.merge import ChangeReport, merge_terminal
-    from fastcs_ethercat.terminals.model import (
-        CoeObject,
-        CoeSubItem,
-        Identity,
-        Oversampling,
-        PdoGroup,
-        SymbolMember,
-        SymbolNode,
-        TerminalType,
-    )
     from fastcs_ethercat.terminals.registry import (
         RegisteredTerminal,
         RegistryMatch,
@@ -65,14 +56,6 @@ _EXPORTS: Final = {
     "terminal_paths": "loader",
     "ChangeReport": "merge",
     "merge_terminal": "merge",
-    "CoeObject": "model",
-    "CoeSubItem": "model",
-    "Identity": "model",
-    "Oversampling": "model",
-    "PdoGroup": "model",
-    "SymbolMember": "model",
-    "SymbolNode": "model",
-    "TerminalType": "model",
     "RegisteredTerminal": "registry",
     "RegistryMatch": "registry",
     "TerminalRegistry": "registry",
@@ -88,19 +71,11 @@ __getattr__ = lazy_exports(__name__, _EXPORTS)
 
 __all__ = [
     "ChangeReport",
-    "CoeObject",
-    "CoeSubItem",
     "ExpandedMember",
     "ExpandedSymbol",
-    "Identity",
-    "Oversampling",
-    "PdoGroup",
     "RegisteredTerminal",
     "RegistryMatch",
-    "SymbolMember",
-    "SymbolNode",
     "TerminalRegistry",
-    "TerminalType",
     "UnknownGroupError",
     "expanded_symbols",
     "load_terminals",
