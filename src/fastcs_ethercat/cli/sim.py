@@ -14,8 +14,14 @@ from typing import Annotated, Any
 import typer
 
 from fastcs_ethercat.ads.constants import ADS_TCP_PORT, ADS_UDP_PORT
-from fastcs_ethercat.cli.options import LogLevelOption, apply_log_level
+from fastcs_ethercat.cli.options import (
+    LogLevelOption,
+    TerminalsDirOption,
+    apply_log_level,
+    terminals_dir,
+)
 from fastcs_ethercat.errors import UserError
+from fastcs_ethercat.loopback import LOOPBACK
 from fastcs_ethercat.shipped import BUILTIN_TERMINALS_DIR
 
 log = logging.getLogger("fastcs_ethercat.sim")
@@ -42,14 +48,7 @@ def sim_command(
             help="Chain description (YAML): masters and their terminals.",
         ),
     ],
-    terminals: Annotated[
-        Path | None,
-        typer.Option(
-            "--terminals",
-            metavar="DIR",
-            help="Directory of terminal YAML (default: the shipped types).",
-        ),
-    ] = None,
+    terminals: TerminalsDirOption = BUILTIN_TERMINALS_DIR,
     revisions: Annotated[
         list[Path] | None,
         typer.Option(
@@ -62,7 +61,7 @@ def sim_command(
     ] = None,
     host: Annotated[
         str, typer.Option("--host", metavar="ADDRESS", help="Address to bind.")
-    ] = "127.0.0.1",
+    ] = LOOPBACK,
     port: Annotated[int, _port_option("--port", "AMS/TCP")] = ADS_TCP_PORT,
     udp_port: Annotated[
         int, _port_option("--udp-port", "UDP discovery and add-route")
@@ -97,10 +96,7 @@ def sim_command(
         raise UserError(f"--cycle-ms must be > 0, got {cycle_ms}")
     if not chain.is_file():
         raise UserError("chain file not found", path=chain)
-    if terminals is None:
-        terminals = BUILTIN_TERMINALS_DIR
-    elif not terminals.is_dir():
-        raise UserError("terminals directory not found", path=terminals)
+    terminals_dir(terminals)
     apply_log_level(log_level)
 
     from fastcs_ethercat.sim.chain import load_chain
