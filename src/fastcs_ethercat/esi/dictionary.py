@@ -16,7 +16,7 @@ from __future__ import annotations
 import re
 from typing import NamedTuple
 
-from .memo import ParseMemo, element_key
+from .memo import ParseMemo, child_keys, element_key
 from .model import (
     Access,
     EsiCoeObject,
@@ -148,15 +148,25 @@ def _enum_item(element: Element) -> EsiEnumItem:
     return EsiEnumItem(value, text)
 
 
-def parse_data_types(element: Element) -> dict[str, EsiDataType]:
-    """`<DataTypes>` -> name -> type, checking that every reference resolves."""
+def parse_data_types(
+    element: Element, memo: ParseMemo | None = None, key: str = ""
+) -> dict[str, EsiDataType]:
+    """`<DataTypes>` -> name -> type, checking that every reference resolves.
+
+    With a `memo` and the element's `key`, each type is parsed once."""
+    children = [child for child in element if child.tag == "DataType"]
+    keys = child_keys(key, "DataType", len(children)) if memo and key else None
     types: dict[str, EsiDataType] = {}
     lines: dict[str, int | None] = {}
-    for child in element:
-        if child.tag == "DataType":
+    for position, child in enumerate(children):
+        if keys is None or memo is None:
             data_type = parse_data_type(child)
-            types.setdefault(data_type.name, data_type)
-            lines.setdefault(data_type.name, child.sourceline)
+        else:
+            data_type = memo.data_type.get(keys[position])
+            if data_type is None:
+                data_type = memo.data_type[keys[position]] = parse_data_type(child)
+        types.setdefault(data_type.name, data_type)
+        lines.setdefault(data_type.name, child.sourceline)
     for data_type in types.values():
         referenced = [sub.type_name for sub in data_type.sub_items]
         if data_type.base_type:
@@ -429,7 +439,7 @@ def parse_dictionary(
             cached = memo.data_types.get(key)
             if cached is None:
                 number = len(memo.data_types)
-                cached = TypeTable(parse_data_types(types_element), number)
+                cached = TypeTable(parse_data_types(types_element, memo, key), number)
                 memo.data_types[key] = cached
             table = cached
     objects: dict[int, EsiCoeObject] = {}

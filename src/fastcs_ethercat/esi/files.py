@@ -159,10 +159,13 @@ class EsiFileResult:
     warnings: tuple[UserError, ...]
 
 
-def iter_devices(root: Element, source: str) -> Iterator[EsiDevice | UserError]:
-    """Each device parsed, or the `UserError` that stopped it."""
+def iter_devices(
+    root: Element, source: str, memo: ParseMemo | None = None
+) -> Iterator[EsiDevice | UserError]:
+    """Each device parsed, or the `UserError` that stopped it (`memo`: shared
+    with other documents of the same parse)."""
     vendor_id = vendor_id_of(root, source)
-    memo = ParseMemo()
+    memo = memo or ParseMemo()
     for position, device in enumerate(device_elements(root)):
         try:
             yield parse_device_element(
@@ -173,12 +176,14 @@ def iter_devices(root: Element, source: str) -> Iterator[EsiDevice | UserError]:
 
 
 @held()  # a burst that only builds objects: see `collector`
-def parse_document(data: bytes, source: str, *, strict: bool = False) -> EsiFileResult:
+def parse_document(
+    data: bytes, source: str, *, strict: bool = False, memo: ParseMemo | None = None
+) -> EsiFileResult:
     """Parse every device of an ESI document held in memory."""
     root = read_root(data, source)
     devices: list[EsiDevice] = []
     warnings: list[UserError] = []
-    for item in iter_devices(root, source):
+    for item in iter_devices(root, source, memo):
         if isinstance(item, UserError):
             if strict:
                 raise item

@@ -1,10 +1,13 @@
-"""Reuse of parsed elements within one document.
+"""Reuse of parsed elements.
 
 Beckhoff repeats the same PDOs, data types and CoE objects in every revision
-of a type (the shared files hold 3706 PDOs but only 1311 distinct ones,
-10958 CoE objects but 3781 distinct ones). Serialising an element is far
-cheaper than parsing it, so identical elements are parsed once per document,
-keyed by their text. Only successes are remembered: a broken element is
+of a type, and some files repeat devices of others (the shared files hold
+3706 PDOs but only 1212 distinct ones, 10958 CoE objects but 3314 distinct
+ones, 31514 data types but 1241 distinct ones in 74 distinct tables).
+Serialising an element is several times cheaper than parsing it, so
+identical elements are parsed once, keyed by their text: the text says all
+the parser reads (entities are not resolved), so one memo serves every
+document of a parse. Only successes are remembered: a broken element is
 parsed (and reported, with its own line) every time.
 """
 
@@ -14,7 +17,7 @@ from typing import TYPE_CHECKING
 
 from lxml import etree
 
-from .model import EsiCoeObject, EsiPdo
+from .model import EsiCoeObject, EsiDataType, EsiPdo
 from .xmltext import Element
 
 if TYPE_CHECKING:
@@ -26,15 +29,37 @@ def element_key(element: Element) -> str:
     return etree.tostring(element, encoding="unicode", with_tail=False)
 
 
-class ParseMemo:
-    """Parsed PDOs, data-type tables and CoE objects of one document."""
+def child_keys(key: str, tag: str, count: int) -> list[str] | None:
+    """Keys for the `count` children `<tag>` of the element serialised as
+    `key`, cut from it rather than serialised again; None if they cannot be.
 
-    __slots__ = ("data_types", "object_facts", "objects", "pdos")
+    In serialised XML a `<` is always markup, so the i-th `</tag>` closes the
+    i-th child when `key` holds exactly `count` start tags `<tag` (no nested
+    or other ones). Each key runs from the end of the previous child (or of
+    the parent's start tag) to its own end: the child is its last element.
+    """
+    pieces = key.split(f"</{tag}>")
+    if len(pieces) != count + 1:
+        return None
+    if key.count(f"<{tag}>") + key.count(f"<{tag} ") != count:
+        return None
+    first = pieces[0]
+    pieces[0] = first[first.index(">") + 1 :]
+    pieces.pop()
+    return pieces
+
+
+class ParseMemo:
+    """Parsed PDOs, data types, their tables and CoE objects."""
+
+    __slots__ = ("data_type", "data_types", "object_facts", "objects", "pdos")
 
     def __init__(self) -> None:
         self.pdos: dict[str, EsiPdo] = {}
         self.data_types: dict[str, TypeTable] = {}
-        """DataTypes text -> the parsed table (numbered in this document)."""
+        """DataTypes text -> the parsed table (numbered in this memo)."""
+        self.data_type: dict[str, EsiDataType] = {}
+        """DataType text (see `child_keys`) -> the parsed type."""
         self.object_facts: dict[str, ObjectFacts] = {}
         """Object text -> what the object itself says (before its type)."""
         self.objects: dict[tuple[int, str], EsiCoeObject] = {}
