@@ -211,23 +211,30 @@ Expansion = tuple[
 items) of one sub-index of an object of a record or array type."""
 
 
+Rows = tuple[Expansion, ...]
+
+
 class TypeTable:
     """A device's data types, and how each record type expands into
     sub-indices (worked out once per type, not once per object)."""
 
-    __slots__ = ("expansions", "number", "types")
+    __slots__ = ("expansions", "rows", "types")
 
-    def __init__(self, types: dict[str, EsiDataType], number: int = -1) -> None:
+    def __init__(
+        self, types: dict[str, EsiDataType], rows: dict[Rows, Rows] | None = None
+    ) -> None:
         self.types = types
-        self.number = number
-        """Identifies the table among those of one document (-1: none)."""
-        self.expansions: dict[str, list[Expansion]] = {}
+        self.rows: dict[Rows, Rows] = {} if rows is None else rows
+        """Expansions by value, shared by tables: equal ones are one object."""
+        self.expansions: dict[str, Rows] = {}
 
-    def expand(self, data_type: EsiDataType) -> list[Expansion]:
-        """One row per sub-index of an object of `data_type`."""
+    def expand(self, data_type: EsiDataType) -> Rows:
+        """One row per sub-index of an object of `data_type`; tables sharing
+        `rows` give the same object for equal expansions."""
         rows = self.expansions.get(data_type.name)
         if rows is None:
-            rows = self.expansions[data_type.name] = self._expand(data_type)
+            rows = tuple(self._expand(data_type))
+            rows = self.expansions[data_type.name] = self.rows.setdefault(rows, rows)
         return rows
 
     def _enum_items(self, type_name: str) -> tuple[EsiEnumItem, ...]:
@@ -362,20 +369,30 @@ def read_object(element: Element) -> ObjectFacts:
     )
 
 
-def resolve_object(
+def object_type(
     facts: ObjectFacts, element: Element, table: TypeTable, check_types: bool
+) -> tuple[EsiDataType | None, Rows]:
+    """The object's data type and its expansion; an unknown type is an error."""
+    data_type = table.types.get(facts.type_name)
+    if data_type is None:
+        if check_types and not is_base_type(facts.type_name):
+            raise fail(
+                element,
+                f"CoE object #x{facts.object_index:04x} {facts.name!r} uses "
+                f"unknown data type {facts.type_name!r}",
+            )
+        return None, ()
+    return data_type, table.expand(data_type) if data_type.sub_items else ()
+
+
+def resolve_object(
+    facts: ObjectFacts, data_type: EsiDataType | None, rows: Rows
 ) -> EsiCoeObject:
     """The object with its sub-items resolved through its data type."""
     index, name, type_name = facts.object_index, facts.name, facts.type_name
     access = facts.access
-    data_type = table.types.get(type_name)
-    if data_type is None and check_types and not is_base_type(type_name):
-        raise fail(
-            element,
-            f"CoE object #x{index:04x} {name!r} uses unknown data type {type_name!r}",
-        )
     sub_items: list[EsiCoeSubItem] = []
-    if data_type is not None and data_type.sub_items:
+    if rows:
         by_name = facts.defaults_by_name
         for (
             subindex,
@@ -386,7 +403,7 @@ def resolve_object(
             sub_access,
             sub_pdo_mapping,
             enum_items,
-        ) in table.expand(data_type):
+        ) in rows:
             defaults = by_name.get(sub_name, _NO_DEFAULTS)
             sub_items.append(
                 EsiCoeSubItem(
@@ -422,7 +439,8 @@ def resolve_object(
 
 def parse_object(element: Element, table: TypeTable, check_types: bool) -> EsiCoeObject:
     """One `<Object>`, sub-items resolved through its data type."""
-    return resolve_object(read_object(element), element, table, check_types)
+    facts = read_object(element)
+    return resolve_object(facts, *object_type(facts, element, table, check_types))
 
 
 def parse_dictionary(
@@ -438,9 +456,8 @@ def parse_dictionary(
             key = element_key(types_element)
             cached = memo.data_types.get(key)
             if cached is None:
-                number = len(memo.data_types)
-                cached = TypeTable(parse_data_types(types_element, memo, key), number)
-                memo.data_types[key] = cached
+                types = parse_data_types(types_element, memo, key)
+                cached = memo.data_types[key] = TypeTable(types, memo.rows)
             table = cached
     objects: dict[int, EsiCoeObject] = {}
     objects_element = element.find("Objects")
@@ -453,12 +470,14 @@ def parse_dictionary(
                 coe_object = parse_object(child, table, check)
             else:
                 key = element_key(child)
-                coe_object = memo.objects.get((table.number, key))
+                facts = memo.object_facts.get(key)
+                if facts is None:
+                    facts = memo.object_facts[key] = read_object(child)
+                data_type, rows = object_type(facts, child, table, check)
+                meaning = (key, id(data_type), id(rows))
+                coe_object = memo.objects.get(meaning)
                 if coe_object is None:
-                    facts = memo.object_facts.get(key)
-                    if facts is None:
-                        facts = memo.object_facts[key] = read_object(child)
-                    coe_object = resolve_object(facts, child, table, check)
-                    memo.objects[table.number, key] = coe_object
+                    coe_object = resolve_object(facts, data_type, rows)
+                    memo.objects[meaning] = coe_object
             objects.setdefault(coe_object.index, coe_object)
     return dict(table.types), objects

@@ -21,7 +21,7 @@ from .model import EsiCoeObject, EsiDataType, EsiPdo
 from .xmltext import Element
 
 if TYPE_CHECKING:
-    from .dictionary import ObjectFacts, TypeTable
+    from .dictionary import ObjectFacts, Rows, TypeTable
 
 
 def element_key(element: Element) -> str:
@@ -52,7 +52,7 @@ def child_keys(key: str, tag: str, count: int) -> list[str] | None:
 class ParseMemo:
     """Parsed PDOs, data types, their tables and CoE objects."""
 
-    __slots__ = ("data_type", "data_types", "object_facts", "objects", "pdos")
+    __slots__ = ("data_type", "data_types", "object_facts", "objects", "pdos", "rows")
 
     def __init__(self) -> None:
         self.pdos: dict[str, EsiPdo] = {}
@@ -62,6 +62,9 @@ class ParseMemo:
         """DataType text (see `child_keys`) -> the parsed type."""
         self.object_facts: dict[str, ObjectFacts] = {}
         """Object text -> what the object itself says (before its type)."""
-        self.objects: dict[tuple[int, str], EsiCoeObject] = {}
-        """(data-type table number, Object text) -> object: an object's
-        meaning depends on the types it refers to."""
+        self.rows: dict[Rows, Rows] = {}
+        """Sub-index expansions of record types by value (see `TypeTable`)."""
+        self.objects: dict[tuple[str, int, int], EsiCoeObject] = {}
+        """(Object text, identities of its data type and of its expansion) ->
+        object: an object's meaning depends on the types it refers to, and
+        both are shared objects held by this memo."""
