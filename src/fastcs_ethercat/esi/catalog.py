@@ -472,6 +472,7 @@ class EsiParseResult:
     files: tuple[EsiFileResult, ...]
 
 
+@held()  # one burst for every document: see `collector`
 def parse_all(source: SourceArg, *, strict: bool = False) -> EsiParseResult:
     """Fully parse every device under `source` (see `build_catalog`).
 

@@ -349,7 +349,8 @@ def read_object(element: Element) -> ObjectFacts:
                 for part in child:
                     part_tag = part.tag
                     if part_tag == "Name":
-                        sub_name = text_of(part)
+                        text = part.text
+                        sub_name = text.strip() if text else ""
                     elif part_tag == "Info":
                         defaults = _defaults(part)
                 if sub_name not in by_name:
@@ -443,41 +444,59 @@ def parse_object(element: Element, table: TypeTable, check_types: bool) -> EsiCo
     return resolve_object(facts, *object_type(facts, element, table, check_types))
 
 
+def _type_table(element: Element, memo: ParseMemo | None) -> TypeTable:
+    """The `<DataTypes>` table, parsed once per memo."""
+    if memo is None:
+        return TypeTable(parse_data_types(element))
+    key = element_key(element)
+    table = memo.data_types.get(key)
+    if table is None:
+        types = parse_data_types(element, memo, key)
+        table = memo.data_types[key] = TypeTable(types, memo.rows)
+    return table
+
+
+def _objects(
+    element: Element, table: TypeTable, check: bool, memo: ParseMemo | None
+) -> dict[int, EsiCoeObject]:
+    """`<Objects>` -> objects by index (the first of an index wins)."""
+    children = [child for child in element if child.tag == "Object"]
+    keys = None
+    if memo is not None:
+        keys = child_keys(element_key(element), "Object", len(children))
+    objects: dict[int, EsiCoeObject] = {}
+    if keys is None or memo is None:
+        for child in children:
+            coe_object = parse_object(child, table, check)
+            objects.setdefault(coe_object.index, coe_object)
+        return objects
+    for child, key in zip(children, keys, strict=True):
+        facts = memo.object_facts.get(key)
+        if facts is None:
+            facts = memo.object_facts[key] = read_object(child)
+        data_type, rows = object_type(facts, child, table, check)
+        meaning = (key, id(data_type), id(rows))
+        coe_object = memo.objects.get(meaning)
+        if coe_object is None:
+            coe_object = memo.objects[meaning] = resolve_object(facts, data_type, rows)
+        objects.setdefault(coe_object.index, coe_object)
+    return objects
+
+
 def parse_dictionary(
     element: Element, memo: ParseMemo | None = None
 ) -> tuple[dict[str, EsiDataType], dict[int, EsiCoeObject]]:
     """`<Dictionary>` -> (data types by name, CoE objects by index)."""
-    types_element = element.find("DataTypes")
-    table = _NO_TYPES
-    if types_element is not None:
-        if memo is None:
-            table = TypeTable(parse_data_types(types_element))
-        else:
-            key = element_key(types_element)
-            cached = memo.data_types.get(key)
-            if cached is None:
-                types = parse_data_types(types_element, memo, key)
-                cached = memo.data_types[key] = TypeTable(types, memo.rows)
-            table = cached
+    types_element: Element | None = None
+    objects_element: Element | None = None
+    for child in element:
+        tag = child.tag
+        if tag == "DataTypes" and types_element is None:
+            types_element = child
+        elif tag == "Objects" and objects_element is None:
+            objects_element = child
+    table = _NO_TYPES if types_element is None else _type_table(types_element, memo)
     objects: dict[int, EsiCoeObject] = {}
-    objects_element = element.find("Objects")
     if objects_element is not None:
-        check = types_element is not None
-        for child in objects_element:
-            if child.tag != "Object":
-                continue
-            if memo is None:
-                coe_object = parse_object(child, table, check)
-            else:
-                key = element_key(child)
-                facts = memo.object_facts.get(key)
-                if facts is None:
-                    facts = memo.object_facts[key] = read_object(child)
-                data_type, rows = object_type(facts, child, table, check)
-                meaning = (key, id(data_type), id(rows))
-                coe_object = memo.objects.get(meaning)
-                if coe_object is None:
-                    coe_object = resolve_object(facts, data_type, rows)
-                    memo.objects[meaning] = coe_object
-            objects.setdefault(coe_object.index, coe_object)
+        objects = _objects(objects_element, table, types_element is not None, memo)
     return dict(table.types), objects

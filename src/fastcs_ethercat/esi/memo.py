@@ -61,7 +61,8 @@ class ParseMemo:
         self.data_type: dict[str, EsiDataType] = {}
         """DataType text (see `child_keys`) -> the parsed type."""
         self.object_facts: dict[str, ObjectFacts] = {}
-        """Object text -> what the object itself says (before its type)."""
+        """Object text (see `child_keys`) -> what the object itself says
+        (before its type)."""
         self.rows: dict[Rows, Rows] = {}
         """Sub-index expansions of record types by value (see `TypeTable`)."""
         self.objects: dict[tuple[str, int, int], EsiCoeObject] = {}
