@@ -43,6 +43,14 @@ NUMBERS_MAX = 1 << 16
 """Spellings remembered at most (a bound for a process reading many files)."""
 
 
+def _remembered(text: str) -> int:
+    """`parse_esi_int` of a spelling, remembered in `NUMBERS`."""
+    number = parse_esi_int(text)
+    if len(NUMBERS) < NUMBERS_MAX:
+        NUMBERS[text] = number
+    return number
+
+
 def int_of(element: Element, what: str) -> int:
     """Element text as an ESI number, or a placed error naming `what`."""
     value = element.text
@@ -52,12 +60,9 @@ def int_of(element: Element, what: str) -> int:
     if value is None or not value.strip():
         raise fail(element, f"{what} is empty")
     try:
-        number = parse_esi_int(value)
+        return _remembered(value)
     except ValueError:
         raise fail(element, f"{what} {value.strip()!r} is not a number") from None
-    if len(NUMBERS) < NUMBERS_MAX:
-        NUMBERS[value] = number
-    return number
 
 
 def int_attr(element: Element, name: str) -> int | None:
@@ -65,8 +70,11 @@ def int_attr(element: Element, name: str) -> int | None:
     value = element.get(name)
     if value is None:
         return None
+    number = NUMBERS.get(value)
+    if number is not None:
+        return number
     try:
-        return parse_esi_int(value)
+        return _remembered(value)
     except ValueError:
         raise fail(
             element, f"attribute {name}={value!r} of <{element.tag}> is not a number"
