@@ -1,7 +1,7 @@
 """The parser's model stays exactly what it was (see `tests/esi_model_digest`):
 every device of the ESI the tests ship, and of `../shared/esi` when present,
 digested field by field against the digests of the model before the speed
-work."""
+work; and the memo's keys cut from a parent's serialisation."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ import json
 from pathlib import Path
 
 from fastcs_ethercat.esi import EsiEnumItem, EsiPdoGroup
+from fastcs_ethercat.esi.memo import child_keys
 from tests.esi_model_digest import (
     DIGESTS_FILE,
     outline,
@@ -49,3 +50,16 @@ def test_the_outline_names_classes_fields_and_order() -> None:
     )
     assert outline(group, "/") != outline(swapped, "/")
     assert outline("/esi/EL1xxx.xml", "/esi/") == "EL1xxx.xml"
+
+
+def test_child_keys_are_cut_only_where_each_child_is_certain() -> None:
+    """The memo's keys for children, cut from the parent's serialisation."""
+    assert child_keys("<P><E>1</E><E a='2'>2</E></P>", "E", 2) == [
+        "<E>1",
+        "<E a='2'>2",
+    ]
+    # an attribute's `>` is escaped when serialised; a sibling stays in the key
+    assert child_keys('<P a="1&gt;"><X/><E>1</E></P>', "E", 1) == ["<X/><E>1"]
+    assert child_keys("<P><E><E>x</E></E></P>", "E", 1) is None  # nested
+    assert child_keys("<P><E/><E>1</E></P>", "E", 2) is None  # empty child
+    assert child_keys("<P><E>1</E></P>", "E", 2) is None  # count differs

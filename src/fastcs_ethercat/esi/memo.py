@@ -57,7 +57,7 @@ class ParseMemo:
     def __init__(self) -> None:
         self.pdos: dict[str, EsiPdo] = {}
         self.data_types: dict[str, TypeTable] = {}
-        """DataTypes text -> the parsed table (numbered in this memo)."""
+        """DataTypes text -> the parsed table."""
         self.data_type: dict[str, EsiDataType] = {}
         """DataType text (see `child_keys`) -> the parsed type."""
         self.object_facts: dict[str, ObjectFacts] = {}
