@@ -162,7 +162,8 @@ def iter_devices(
     """Each device parsed, or the `UserError` that stopped it (`memo`: shared
     with other documents of the same parse)."""
     vendor_id = vendor_id_of(root, source)
-    memo = memo or ParseMemo()
+    if memo is None:
+        memo = ParseMemo()
     for position, device in enumerate(device_elements(root)):
         try:
             yield parse_device_element(
