@@ -5,8 +5,11 @@ from __future__ import annotations
 import struct
 
 from fastcs_ethercat.ads.constants import AdsReturnCode, IndexGroup, coe_index_offset
+from fastcs_ethercat.ioc.resolve import coe_object_points
+from fastcs_ethercat.sim.coe import CoeDictionary
 from fastcs_ethercat.sim.probe import SimProbe
 from fastcs_ethercat.sim.target import SimTarget
+from fastcs_ethercat.terminals.model import CoeObject, CoeSubItem
 from tests.test_sim_model_support import (
     EL3104_COMPACT,
     demo_target,
@@ -128,3 +131,22 @@ def test_slave_port_reports_the_al_state() -> None:
     target.set_slave_state(EL3104_COMPACT, "SAFEOP")
     assert probe.read_state().device_state == 4
     assert probe.device_info().name == "EL3104"
+
+
+def test_a_sub_item_without_its_own_access_has_its_objects() -> None:
+    """The IOC serves such a sub-item writable when its object is rw: the
+    simulator takes the write too (one rule, `CoeObject.access_of`)."""
+    item = CoeSubItem(
+        subindex=1, name="Limit", fastcs_name="limit", type_name="UINT", bit_size=16
+    )
+    settings = CoeObject(
+        index=0x8000, name="Settings", fastcs_name="settings", selected=True,
+        type_name="DT8000", bit_size=32, access="rw", sub_items=[item],
+    )  # fmt: skip
+    dictionary = CoeDictionary.from_terminal([settings])
+    offset = coe_index_offset(0x8000, 1)
+
+    assert settings.access_of(item) == "rw"
+    assert dictionary.write(offset, struct.pack("<H", 300)) == 0
+    assert dictionary.read(offset, 2) == (0, struct.pack("<H", 300))
+    assert coe_object_points(settings)[-1].writable

@@ -98,6 +98,25 @@ def test_sum_read_of_bits_and_by_handle() -> None:
     assert answer.data == (b"\x01", b"\x00", struct.pack("<h", -7))
 
 
+def test_a_sum_read_refuses_past_the_image_end_like_a_plain_read() -> None:
+    """Each sub-read of a sum read answers what the same read alone answers:
+    the bit just past the input image as well as bytes past it."""
+    target = demo_target()
+    probe = device(target)
+    size = target.devices[0].layout.input_size
+    reads = [
+        (IndexGroup.IO_IMAGE_RW_INPUT_BITS, 8 * size, 1),
+        (IndexGroup.IO_IMAGE_RW_INPUT_BITS, 8 * size + 9, 1),
+        (IndexGroup.IO_IMAGE_RW_INPUT_BYTES, size, 1),
+        (IndexGroup.IO_IMAGE_RW_INPUT_BYTES, size + 1, 1),
+    ]
+    _, answer = sum_read(probe, [SumReadItem(*read) for read in reads])
+
+    assert answer is not None
+    assert list(answer.results) == [probe.read(*read).result for read in reads]
+    assert all(answer.results)
+
+
 def test_more_than_500_items_are_refused_whole() -> None:
     probe = device(demo_target())
     first = entry(probe, COMPACT[0])

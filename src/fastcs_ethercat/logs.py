@@ -23,6 +23,8 @@ if TYPE_CHECKING:
 LOG_FORMAT: Final = "%(asctime)s.%(msecs)03d %(levelname)-7s %(name)s: %(message)s"
 DATE_FORMAT: Final = "%Y-%m-%d %H:%M:%S"
 _LOGURU_NAME_KEY: Final = "logger_name"
+NAMES_SHOWN: Final = 3
+"""Names a warning lists before it counts the rest (`first_names`)."""
 
 
 class LogLevel(StrEnum):
@@ -125,6 +127,14 @@ def _to_logging(message: Message) -> None:
     )
 
 
+def first_names(names: Sequence[str], shown: int = NAMES_SHOWN) -> str:
+    """`a, b, c and 4 more`: names a warning can carry in one line."""
+    text = ", ".join(names[:shown])
+    if len(names) > shown:
+        text += f" and {len(names) - shown} more"
+    return text
+
+
 def log_at_most(
     logger: logging.Logger,
     level: int,
@@ -149,8 +159,10 @@ def log_at_most(
 __all__ = [
     "DATE_FORMAT",
     "LOG_FORMAT",
+    "NAMES_SHOWN",
     "LogLevel",
     "OneLineFormatter",
+    "first_names",
     "log_at_most",
     "one_line_error",
     "setup_logging",

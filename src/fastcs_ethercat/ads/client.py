@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from datetime import datetime
 from typing import Any, Final, TypeVar
@@ -84,6 +84,7 @@ from fastcs_ethercat.ads.sums import (
     chunked,
 )
 from fastcs_ethercat.ads.symbols import (
+    SYMBOL_INFO_SIZE,
     AdsSymbolEntry,
     SymbolUploadInfo,
     SymbolUploadInfo2,
@@ -101,8 +102,6 @@ DEFAULT_TIMEOUT_MS: Final = 5000
 """Timeout of a request when none is given (AdsLib's default)."""
 UPLOAD_INFO_2_SIZE: Final = 24
 UPLOAD_INFO_SIZE: Final = 8
-SYMBOL_INFO_SIZE: Final = 1024
-"""Read length of one 0xF009 answer (an entry with a long name and comment)."""
 DATA_TYPE_TABLE_LIMIT: Final = 16 * 1024 * 1024
 """Read length of a data-type table whose size the target did not tell."""
 
@@ -312,13 +311,22 @@ class AdsClient:
         exact: bool = True,
     ) -> bytes:
         """Write `data`, read back `read_size` bytes (up to, with `exact=False`)."""
-        operation = f"read-write 0x{index_group:X}:0x{index_offset:X}"
-        response = await self._request(
-            operation,
-            ReadWriteRequest(index_group, index_offset, read_size, bytes(data)),
-            ReadWriteResponse,
-        )
-        return self._sized(operation, response.data, read_size, exact)
+        request = ReadWriteRequest(index_group, index_offset, read_size, bytes(data))
+        return await self._read_write(request, exact)
+
+    async def _read_write(self, request: ReadWriteRequest, exact: bool) -> bytes:
+        operation = f"read-write 0x{request.index_group:X}:0x{request.index_offset:X}"
+        response = await self._request(operation, request, ReadWriteResponse)
+        return self._sized(operation, response.data, request.read_length, exact)
+
+    async def _sums(
+        self,
+        requests: Iterable[SumReadRequest | SumWriteRequest | SumReadWriteRequest],
+        exact: bool = True,
+    ) -> list[bytes]:
+        """Every sum request as its ReadWrite (its sum group, the item count
+        as offset), all in flight at once."""
+        return await _all(self._read_write(r.to_read_write(), exact) for r in requests)
 
     # -- sum commands ----------------------------------------------------------
 
@@ -333,15 +341,8 @@ class AdsClient:
         """
         if not 0 < chunk_size <= MAX_SUM_SUB_COMMANDS:
             raise ValueError(f"chunk size must be 1..{MAX_SUM_SUB_COMMANDS}")
-        requests = [SumReadRequest(tuple(c)) for c in chunked(items, chunk_size)]
-        return await _all(
-            self.read_write(
-                IndexGroup.SUMUP_READ,
-                len(request.items),
-                request.read_length,
-                request.encode(),
-            )
-            for request in requests
+        return await self._sums(
+            SumReadRequest(tuple(c)) for c in chunked(items, chunk_size)
         )
 
     async def sum_read_items(
@@ -365,16 +366,7 @@ class AdsClient:
     ) -> list[tuple[int, bytes]]:
         """0xF082 in requests of at most 500: (result, data) per item."""
         requests = [SumReadWriteRequest(tuple(c)) for c in chunked(items)]
-        answers = await _all(
-            self.read_write(
-                IndexGroup.SUMUP_READ_WRITE,
-                len(request.items),
-                request.read_length,
-                request.encode(),
-                exact=False,
-            )
-            for request in requests
-        )
+        answers = await self._sums(requests, exact=False)
         outcomes: list[tuple[int, bytes]] = []
         for request, answer in zip(requests, answers, strict=True):
             response = self._decode(
@@ -394,15 +386,7 @@ class AdsClient:
         """
         requests = [SumWriteRequest(tuple(c)) for c in chunked(items)]
         try:
-            answers = await _all(
-                self.read_write(
-                    IndexGroup.SUMUP_WRITE,
-                    len(request.items),
-                    request.read_length,
-                    request.encode(),
-                )
-                for request in requests
-            )
+            answers = await self._sums(requests)
         except AdsError as error:
             if error.code != AdsReturnCode.DEVICE_SERVICE_NOT_SUPPORTED:
                 raise

@@ -179,6 +179,15 @@ class _ResultOnly(_Fixed, AdsResponse):
     result: int = AdsReturnCode.NO_ERROR
 
 
+@dataclass(frozen=True, slots=True)
+class _DataResponse(_Sized, AdsResponse):
+    """A response that is its result and the data read (Read, ReadWrite)."""
+
+    layout = struct.Struct("<II")
+    result: int = AdsReturnCode.NO_ERROR
+    data: bytes = b""
+
+
 # -- ReadDeviceInfo (1) -----------------------------------------------------
 
 
@@ -234,11 +243,8 @@ class ReadRequest(_Fixed, AdsRequest):
 
 
 @dataclass(frozen=True, slots=True)
-class ReadResponse(_Sized, AdsResponse):
+class ReadResponse(_DataResponse):
     command = AmsCommand.READ
-    layout = struct.Struct("<II")
-    result: int = AdsReturnCode.NO_ERROR
-    data: bytes = b""
 
 
 @dataclass(frozen=True, slots=True)
@@ -266,11 +272,8 @@ class ReadWriteRequest(_Sized, AdsRequest):
 
 
 @dataclass(frozen=True, slots=True)
-class ReadWriteResponse(_Sized, AdsResponse):
+class ReadWriteResponse(_DataResponse):
     command = AmsCommand.READ_WRITE
-    layout = struct.Struct("<II")
-    result: int = AdsReturnCode.NO_ERROR
-    data: bytes = b""
 
 
 # -- ReadState (4), WriteControl (5) -----------------------------------------

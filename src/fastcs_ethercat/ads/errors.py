@@ -114,13 +114,6 @@ _TIMEOUTS: Final = frozenset(
         AdsReturnCode.AMS_SYNC_TIMEOUT,
     }
 )
-_SYMBOL_ERRORS: Final = frozenset(
-    {
-        AdsReturnCode.DEVICE_SYMBOL_NOT_FOUND,
-        AdsReturnCode.DEVICE_SYMBOL_VERSION_INVALID,
-        AdsReturnCode.DEVICE_SYMBOL_NOT_ACTIVE,
-    }
-)
 HANDLE_ERRORS: Final = frozenset(
     {
         AdsReturnCode.DEVICE_SYMBOL_NOT_FOUND,
@@ -128,6 +121,7 @@ HANDLE_ERRORS: Final = frozenset(
     }
 )
 """What a request by handle answers when the handle is unknown or outdated."""
+_SYMBOL_ERRORS: Final = HANDLE_ERRORS | {AdsReturnCode.DEVICE_SYMBOL_NOT_ACTIVE}
 _NO_ANSWER: Final = frozenset(
     {
         AdsReturnCode.CLIENT_PORT_NOT_OPEN,

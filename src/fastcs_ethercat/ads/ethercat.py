@@ -32,6 +32,10 @@ from fastcs_ethercat.ads.wire import (
 )
 
 DEVICE_NAME_MAX: Final = 255
+SLAVE_INFO_INDEX: Final = 0x8000
+"""Master CoE: object 0x8000 + n describes slave n (sub 2 type, sub 3 name)."""
+SLAVE_TYPE_SUBINDEX: Final = 2
+SLAVE_NAME_SUBINDEX: Final = 3
 
 
 class AlState(IntEnum):

@@ -33,6 +33,8 @@ SYMBOL_ENTRY_ALIGNMENT: Final = 8
 """Entries are padded to a multiple of this. Evidence: pyads' docstring shows a
 real TwinCAT 3 entry of 68 bytes + a 16-byte type GUID with entry length 88
 (84 rounded up to 8). Readers rely only on the entry length, as pyads does."""
+SYMBOL_INFO_SIZE: Final = 1024
+"""Read length of one 0xF009 answer (an entry with a long name and comment)."""
 
 _HEADER: Final = struct.Struct("<IIIIIIHHH")
 

@@ -19,7 +19,12 @@ from typing import Annotated
 
 import typer
 
-from fastcs_ethercat.cli.options import LogLevelOption, apply_log_level
+from fastcs_ethercat.cli.options import (
+    LogLevelOption,
+    TerminalsDirOption,
+    apply_log_level,
+    terminals_dir,
+)
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.shipped import BUILTIN_TERMINALS_DIR, DEMO_CHAIN
 
@@ -35,12 +40,6 @@ class Section(StrEnum):
 
 
 SECTIONS = tuple(str(section) for section in Section)
-
-
-def _need_dir(path: Path, option: str) -> Path:
-    if not path.is_dir():
-        raise UserError(f"not a directory; give one with {option}", path=path)
-    return path
 
 
 def bench_command(
@@ -59,15 +58,7 @@ def bench_command(
             help="Run only this section (repeatable).",
         ),
     ] = None,
-    terminals: Annotated[
-        Path,
-        typer.Option(
-            "--terminals",
-            metavar="DIR",
-            help="Directory of terminal YAML (default: the shipped types).",
-            show_default=False,
-        ),
-    ] = BUILTIN_TERMINALS_DIR,
+    terminals: TerminalsDirOption = BUILTIN_TERMINALS_DIR,
     esi: Annotated[
         Path | None,
         typer.Option(
@@ -100,7 +91,7 @@ def bench_command(
     from fastcs_ethercat.terminals.esi_sources import esi_sources
 
     sections = tuple(str(section) for section in only) if only else SECTIONS
-    _need_dir(terminals, "--terminals")
+    terminals_dir(terminals)
     esi_source = esi_sources([esi] if esi else None)[0] if "esi" in sections else None
     if not demo_chain.is_file():
         raise UserError("not found; give a chain with --demo-chain", path=demo_chain)

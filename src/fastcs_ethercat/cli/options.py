@@ -1,4 +1,5 @@
-"""What every command shares: `--log-level`, and plain help.
+"""What several commands share: `--log-level`, the target, the terminal YAML
+directory, and plain help.
 
 Help is Click's plain format (`rich_markup_mode=None`): Typer's rich panels
 print a type such as `<bool>` after every flag, which reads as if the flag
@@ -7,10 +8,12 @@ took a value.
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Annotated, Any, Final
 
 import typer
 
+from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.logs import LogLevel, setup_logging
 
 LogLevelOption = Annotated[
@@ -37,6 +40,23 @@ AmsNetIdOption = Annotated[
         help="AMS NetId of the target (default: asked over UDP 48899).",
     ),
 ]
+
+TerminalsDirOption = Annotated[
+    Path,
+    typer.Option(
+        "--terminals",
+        metavar="DIR",
+        help="Directory of terminal YAML (default: the shipped types).",
+        show_default=False,
+    ),
+]
+
+
+def terminals_dir(path: Path) -> Path:
+    """`--terminals` checked: a directory, else one line naming it."""
+    if not path.is_dir():
+        raise UserError("not a directory; give one with --terminals", path=path)
+    return path
 
 
 def apply_log_level(level: LogLevel | None) -> None:

@@ -14,7 +14,12 @@ from typing import Annotated, Any
 import typer
 
 from fastcs_ethercat.ads.constants import ADS_TCP_PORT, ADS_UDP_PORT
-from fastcs_ethercat.cli.options import LogLevelOption, apply_log_level
+from fastcs_ethercat.cli.options import (
+    LogLevelOption,
+    TerminalsDirOption,
+    apply_log_level,
+    terminals_dir,
+)
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.shipped import BUILTIN_TERMINALS_DIR
 
@@ -42,14 +47,7 @@ def sim_command(
             help="Chain description (YAML): masters and their terminals.",
         ),
     ],
-    terminals: Annotated[
-        Path | None,
-        typer.Option(
-            "--terminals",
-            metavar="DIR",
-            help="Directory of terminal YAML (default: the shipped types).",
-        ),
-    ] = None,
+    terminals: TerminalsDirOption = BUILTIN_TERMINALS_DIR,
     revisions: Annotated[
         list[Path] | None,
         typer.Option(
@@ -97,10 +95,7 @@ def sim_command(
         raise UserError(f"--cycle-ms must be > 0, got {cycle_ms}")
     if not chain.is_file():
         raise UserError("chain file not found", path=chain)
-    if terminals is None:
-        terminals = BUILTIN_TERMINALS_DIR
-    elif not terminals.is_dir():
-        raise UserError("terminals directory not found", path=terminals)
+    terminals_dir(terminals)
     apply_log_level(log_level)
 
     from fastcs_ethercat.sim.chain import load_chain

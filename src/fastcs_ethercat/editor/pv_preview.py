@@ -20,6 +20,7 @@ from fastcs_ethercat.ioc.naming import (
     Node,
     NodeKind,
     PvRequest,
+    coe_leaf,
     coe_request,
     plan_pv_names,
     symbol_request,
@@ -32,8 +33,6 @@ from fastcs_ethercat.terminals.symbols import expanded_symbols
 
 TERMINAL_PREFIX = re.compile(r"^(?P<ioc>.+):ETH(?P<m>\d+):RIO(?P<c>\d+):MOD(?P<t>\d+)$")
 EXAMPLE_PREFIX = "BL45P-MO-IOC-01:ETH1:RIO1:MOD5"
-COE_LEAF_PREFIX = "Coe "
-"""The IOC's CoE leaves are `Coe <attribute>` (ioc.controllers.terminal)."""
 
 
 @dataclass(frozen=True)
@@ -103,7 +102,7 @@ def _leaves(
             if len(symbol.members) == 1 and has_raw_twin(symbol.members[0].scaling):
                 leaves.append(_raw_twin(request, name, None, **where))
     for coe in coe_points(terminal):
-        request = coe_request(path, COE_LEAF_PREFIX + coe.attribute, coe)
+        request = coe_request(path, coe_leaf(coe.attribute), coe)
         sub = f":{coe.subindex:02x}" if coe.subindex else ""
         source = f"CoE 0x{coe.index:04x}{sub}"
         leaves.append(_Leaf(request, source))

@@ -24,6 +24,9 @@ from fastcs_ethercat.ads.constants import (
     device_port,
 )
 from fastcs_ethercat.ads.ethercat import (
+    SLAVE_INFO_INDEX,
+    SLAVE_NAME_SUBINDEX,
+    SLAVE_TYPE_SUBINDEX,
     SlaveIdentity,
     decode_device_count,
     decode_device_ids,
@@ -49,10 +52,6 @@ from fastcs_ethercat.terminals.registry import TerminalRegistry
 
 logger = logging.getLogger(__name__)
 
-SLAVE_INFO_INDEX = 0x8000
-"""Master CoE: object 0x8000 + n describes slave n (sub 2 type, sub 3 name)."""
-SLAVE_TYPE_SUBINDEX = 2
-SLAVE_NAME_SUBINDEX = 3
 TEXT_SIZE = 255
 """Longest name or type read (the answer is cut at its first NUL)."""
 COUPLER_GROUP_TYPES = frozenset({"SystemBk", "Coupler", "BusCoupler"})

@@ -32,14 +32,16 @@ from fastcs_ethercat.ads.constants import (
 )
 from fastcs_ethercat.ads.errors import AdsCodecError
 from fastcs_ethercat.ads.sums import SumReadWriteItem
-from fastcs_ethercat.ads.symbols import AdsSymbolEntry, encode_symbol_name
+from fastcs_ethercat.ads.symbols import (
+    SYMBOL_INFO_SIZE,
+    AdsSymbolEntry,
+    encode_symbol_name,
+)
 from fastcs_ethercat.ads.wire import U32
 from fastcs_ethercat.ioc.plan import Point
 
 logger = logging.getLogger(__name__)
 
-SYMBOL_INFO_SIZE: Final = 1024
-"""Read length of one 0xF009 answer (an entry with a long name and comment)."""
 RELEASE_TIMEOUT_S: Final = 0.5
 """Releasing old handles is a courtesy to the target: never waited for long."""
 

@@ -75,6 +75,7 @@ MAX_PV_LENGTH: Final = 60
 RBV_SUFFIX: Final = "_RBV"
 """FastCS serves a read-write attribute as `<name>` plus `<name>_RBV`."""
 MAX_BASE_LENGTH: Final = MAX_PV_LENGTH - len(RBV_SUFFIX)
+COE_LEAF_PREFIX: Final = "Coe "
 MIN_LEAF: Final = 8
 """Room always left for a writable value's name, whatever the prefix."""
 MAX_CONTROLLER_SEGMENT: Final = 16
@@ -278,6 +279,11 @@ def twin_request(request: PvRequest, leaf: str, suffix: str) -> PvRequest:
     """The request of a read-only attribute served beside `request`'s (a
     scaled value's raw count): same place, each readable name + `suffix`."""
     return PvRequest(request.path, leaf, tuple(name + suffix for name in request.names))
+
+
+def coe_leaf(attribute: str) -> str:
+    """A CoE attribute's leaf: `Coe <attribute>` (-> `CoeFilterSettings`)."""
+    return COE_LEAF_PREFIX + attribute
 
 
 def coe_request(path: tuple[Node, ...], leaf: str, coe: CoePoint) -> PvRequest:

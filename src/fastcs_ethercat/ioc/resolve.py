@@ -31,6 +31,7 @@ from fastcs_ethercat.ioc.plan import (
     SlaveInfo,
     TerminalPlan,
 )
+from fastcs_ethercat.logs import first_names
 from fastcs_ethercat.terminals.meaning import (
     SEVERITY_LEVELS,
     Scaling,
@@ -38,7 +39,7 @@ from fastcs_ethercat.terminals.meaning import (
     describe,
     severity_of_name,
 )
-from fastcs_ethercat.terminals.model import CoeObject, TerminalType
+from fastcs_ethercat.terminals.model import CoeObject, CoeSubItem, TerminalType
 from fastcs_ethercat.terminals.names import snake_name, take_unique
 from fastcs_ethercat.terminals.registry import RegistryMatch, TerminalRegistry
 from fastcs_ethercat.terminals.symbols import ExpandedSymbol, expanded_symbols
@@ -52,8 +53,6 @@ RUNTIME_ATTRIBUTES = {
     "WcState.InputToggle": "input_toggle",
 }
 """TwinCAT's per-terminal runtime symbols (not in the ESI) and their names."""
-SHOWN_DROPPED = 3
-"""Symbols a warning names before it says how many more there are."""
 
 Types = Mapping[str, AdsDataTypeEntry]
 NUMBER_KINDS = frozenset({PointKind.SCALAR, PointKind.ARRAY})
@@ -369,10 +368,7 @@ def _match_warning(
             f"{match.type_name} revision 0x{match.revision:08x}"
         )
     if dropped:
-        shown = ", ".join(repr(name) for name in dropped[:SHOWN_DROPPED])
-        more = len(dropped) - SHOWN_DROPPED
-        if more > 0:
-            shown += f" and {more} more"
+        shown = first_names([repr(name) for name in dropped])
         text += "; " if not match.exact else ""
         text += f"{len(dropped)} selected symbols not on the target, dropped: {shown}"
     if unknown:
@@ -492,42 +488,45 @@ def coe_points(terminal: TerminalType) -> list[CoePoint]:
 
 
 def coe_object_points(obj: CoeObject) -> list[CoePoint]:
-    """A CoE object's sub-items (or the object itself when it has none)."""
+    """A CoE object's selected sub-items (or the object itself when it has none)."""
     if not obj.sub_items:
-        return [
-            CoePoint(
-                attribute=obj.fastcs_name,
-                index=obj.index,
-                subindex=0,
-                type_name=obj.type_name,
-                bit_size=obj.bit_size,
-                writable=obj.access in ("rw", "wo"),
-                description=obj.name,
-                default=obj.default_value or obj.default_data or "",
-                enum_texts=tuple((e.value, e.text) for e in obj.enum),
-                units=coe_unit(obj.unit),
-                name=obj.name,
-                object_name=obj.name,
-            )
-        ]
+        return [_coe_point(obj, obj, 0, obj.fastcs_name, obj.name)]
     return [
-        CoePoint(
-            attribute=f"{obj.fastcs_name}_{sub.fastcs_name}",
-            name=sub.name,
-            object_name=obj.name,
-            index=obj.index,
-            subindex=sub.subindex,
-            type_name=sub.type_name,
-            bit_size=sub.bit_size,
-            writable=(sub.access or obj.access) in ("rw", "wo"),
-            description=f"{obj.name}: {sub.name}",
-            default=sub.default_value or sub.default_data or "",
-            enum_texts=tuple((e.value, e.text) for e in sub.enum),
-            units=coe_unit(sub.unit or obj.unit),
+        _coe_point(
+            obj,
+            sub,
+            sub.subindex,
+            f"{obj.fastcs_name}_{sub.fastcs_name}",
+            f"{obj.name}: {sub.name}",
         )
         for sub in obj.sub_items
         if sub.selected
     ]
+
+
+def _coe_point(
+    obj: CoeObject,
+    item: CoeObject | CoeSubItem,
+    subindex: int,
+    attribute: str,
+    description: str,
+) -> CoePoint:
+    """One point of `obj`: a sub-item, or the object itself; a sub-item
+    without its own access or unit has the object's."""
+    return CoePoint(
+        attribute=attribute,
+        index=obj.index,
+        subindex=subindex,
+        type_name=item.type_name,
+        bit_size=item.bit_size,
+        writable=obj.access_of(item) in ("rw", "wo"),
+        description=description,
+        default=item.default_value or item.default_data or "",
+        enum_texts=tuple((e.value, e.text) for e in item.enum),
+        units=coe_unit(item.unit or obj.unit),
+        name=item.name,
+        object_name=obj.name,
+    )
 
 
 # -- per master ---------------------------------------------------------------

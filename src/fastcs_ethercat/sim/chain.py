@@ -63,7 +63,13 @@ from pydantic import (
 from fastcs_ethercat.ads.errors import AdsCodecError
 from fastcs_ethercat.ads.netid import AmsNetId
 from fastcs_ethercat.errors import UserError
-from fastcs_ethercat.terminals.yaml_io import Loc, LocatedYaml, format_loc, parse_yaml
+from fastcs_ethercat.terminals.yaml_io import (
+    Loc,
+    LocatedYaml,
+    format_loc,
+    parse_yaml,
+    validation_error,
+)
 
 SignalKind = Literal["constant", "counter", "ramp", "sine", "random_bits"]
 AlStateName = Literal["INIT", "PREOP", "BOOT", "SAFEOP", "OP"]
@@ -290,7 +296,7 @@ def parse_chain(text: str, path: Path | str = "<chain>") -> Chain:
     try:
         chain = Chain.model_validate(located.data)
     except ValidationError as error:
-        raise _validation_error(located, error) from None
+        raise validation_error(located, (), error) from None
     chain._located = located
     _check_unique_names(chain)
     return chain
@@ -321,32 +327,6 @@ def load_chain(path: Path | str) -> Chain:
     except (OSError, UnicodeDecodeError) as error:
         raise UserError(f"cannot read the chain file: {error}", path=path) from None
     return parse_chain(text, path)
-
-
-def _validation_error(located: LocatedYaml, error: ValidationError) -> UserError:
-    """The first pydantic problem as one line at its place in the file."""
-    details = error.errors()
-    first = details[0]
-    loc: Loc = tuple(first["loc"])
-    kind = first["type"]
-    if kind == "extra_forbidden":
-        message = f"unknown key {loc[-1]!r}"
-    elif kind == "missing":
-        message = f"missing key {loc[-1]!r}"
-        loc = loc[:-1]
-    else:
-        shown = repr(first.get("input"))
-        shown = shown if len(shown) <= 40 else shown[:37] + "..."
-        message = first["msg"].removeprefix("Value error, ")
-        if kind != "value_error":
-            message = f"{message} (got {shown})"
-    more = f" (and {len(details) - 1} more problems)" if len(details) > 1 else ""
-    shown_loc = format_loc(loc)
-    return UserError(
-        f"{shown_loc}: {message}{more}" if shown_loc else f"{message}{more}",
-        path=located.path,
-        where=located.where(loc),
-    )
 
 
 __all__ = [

@@ -17,10 +17,12 @@ TwinCAT, which turns SDO abort codes into ADS errors):
 from __future__ import annotations
 
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import astuple, dataclass
 from typing import Final
 
 from fastcs_ethercat.ads.constants import COE_COMPLETE_ACCESS_FLAG, AdsReturnCode
+from fastcs_ethercat.ads.ethercat import SlaveIdentity
+from fastcs_ethercat.sim.answers import fit
 from fastcs_ethercat.sim.image import get_bits, raw_bytes, set_bits
 from fastcs_ethercat.terminals.model import CoeObject
 
@@ -123,9 +125,7 @@ class CoeDictionary:
         result, data = obj.read(subindex, complete)
         if result:
             return result, b""
-        if length < len(data):
-            return AdsReturnCode.DEVICE_INVALID_SIZE, b""
-        return AdsReturnCode.NO_ERROR, data
+        return fit(data, length)
 
     def write(self, offset: int, data: bytes) -> int:
         index, subindex, complete = split_offset(offset)
@@ -134,15 +134,14 @@ class CoeDictionary:
             return AdsReturnCode.DEVICE_INVALID_OFFSET
         return obj.write(subindex, data, complete)
 
-    def set_identity(
-        self, vendor: int, product: int, revision: int, serial: int
-    ) -> None:
-        """Make 0x1018 report the identity the slave really has."""
+    def set_identity(self, identity: SlaveIdentity) -> None:
+        """Make 0x1018 report the identity the slave really has (sub-indices
+        1-4: vendor, product code, revision, serial number)."""
         obj = self.objects.get(IDENTITY_INDEX)
         if obj is None:
             obj = _record(IDENTITY_INDEX, [(1, 32), (2, 32), (3, 32), (4, 32)])
             self.objects[IDENTITY_INDEX] = obj
-        for subindex, value in enumerate((vendor, product, revision, serial), start=1):
+        for subindex, value in enumerate(astuple(identity), start=1):
             entry = obj.entries.get(subindex)
             if entry is not None:
                 set_bits(obj.data, entry.bit_offset, entry.bit_size, value)
@@ -185,12 +184,13 @@ def _store(obj: CoeObject) -> CoeObjectStore:
     entries: dict[int, CoeEntry] = {}
     end = 0
     for item, offset in zip(items, offsets, strict=True):
+        access = obj.access_of(item)
         entries[item.subindex] = CoeEntry(
             item.subindex,
             offset,
             item.bit_size,
-            item.access != "wo",
-            item.access in {"rw", "wo"},
+            access != "wo",
+            access in {"rw", "wo"},
             is_string=_is_string(item.type_name),
         )
         end = max(end, offset + item.bit_size)

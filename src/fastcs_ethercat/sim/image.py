@@ -18,6 +18,35 @@ from fastcs_ethercat.sim.tctypes import TcType
 _BITS: Final = (b"\x00", b"\x01")
 
 
+def read_slice(buffer: bytearray, offset: int, length: int) -> tuple[int, bytes]:
+    """`length` bytes from `offset`: a read past the end is refused whole
+    (0x703 when it starts past the end, 0x705 when it runs over it)."""
+    end = offset + length
+    if end > len(buffer):
+        if offset > len(buffer):
+            return AdsReturnCode.DEVICE_INVALID_OFFSET, b""
+        return AdsReturnCode.DEVICE_INVALID_SIZE, b""
+    return AdsReturnCode.NO_ERROR, bytes(buffer[offset:end])
+
+
+def read_bits(buffer: bytearray, bit_offset: int, count: int) -> tuple[int, bytes]:
+    """`count` bits from `bit_offset`, one byte (0 or 1) each, refused past
+    the end like `read_slice`."""
+    size = 8 * len(buffer)
+    if bit_offset + count > size:
+        if bit_offset > size:
+            return AdsReturnCode.DEVICE_INVALID_OFFSET, b""
+        return AdsReturnCode.DEVICE_INVALID_SIZE, b""
+    if count == 1:
+        return AdsReturnCode.NO_ERROR, _BITS[
+            buffer[bit_offset >> 3] >> (bit_offset & 7) & 1
+        ]
+    return AdsReturnCode.NO_ERROR, bytes(
+        (buffer[(bit_offset + i) >> 3] >> ((bit_offset + i) & 7)) & 1
+        for i in range(count)
+    )
+
+
 class ProcessImage:
     """Input and output image of one device, as plain bytearrays."""
 
@@ -35,14 +64,7 @@ class ProcessImage:
     def read_bytes(
         self, area: ImageArea, offset: int, length: int
     ) -> tuple[int, bytes]:
-        buffer = self.buffer(area)
-        if offset > len(buffer):
-            return AdsReturnCode.DEVICE_INVALID_OFFSET, b""
-        if offset + length > len(buffer):
-            return AdsReturnCode.DEVICE_INVALID_SIZE, b""
-        return AdsReturnCode.NO_ERROR, bytes(
-            memoryview(buffer)[offset : offset + length]
-        )
+        return read_slice(self.buffer(area), offset, length)
 
     def write_bytes(self, area: ImageArea, offset: int, data: bytes) -> int:
         buffer = self.buffer(area)
@@ -57,19 +79,7 @@ class ProcessImage:
         self, area: ImageArea, bit_offset: int, count: int
     ) -> tuple[int, bytes]:
         """`count` bits from `bit_offset`, one byte (0 or 1) each."""
-        buffer = self.buffer(area)
-        if bit_offset > 8 * len(buffer):
-            return AdsReturnCode.DEVICE_INVALID_OFFSET, b""
-        if bit_offset + count > 8 * len(buffer):
-            return AdsReturnCode.DEVICE_INVALID_SIZE, b""
-        if count == 1:
-            return AdsReturnCode.NO_ERROR, _BITS[
-                buffer[bit_offset >> 3] >> (bit_offset & 7) & 1
-            ]
-        return AdsReturnCode.NO_ERROR, bytes(
-            (buffer[(bit_offset + i) >> 3] >> ((bit_offset + i) & 7)) & 1
-            for i in range(count)
-        )
+        return read_bits(self.buffer(area), bit_offset, count)
 
     def write_bit_bytes(self, area: ImageArea, bit_offset: int, data: bytes) -> int:
         """Set one bit per byte of `data` (non-zero = 1) from `bit_offset`."""

@@ -13,7 +13,7 @@ CoE (0x1018 identity, 0x8000 + n sub 2 / 3: type and name of slave n).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import astuple, dataclass, field
 from typing import Final
 
 from fastcs_ethercat.ads.constants import (
@@ -23,6 +23,9 @@ from fastcs_ethercat.ads.constants import (
     IndexGroup,
 )
 from fastcs_ethercat.ads.ethercat import (
+    SLAVE_INFO_INDEX,
+    SLAVE_NAME_SUBINDEX,
+    SLAVE_TYPE_SUBINDEX,
     AlState,
     CrcCounters,
     FrameCounters,
@@ -36,14 +39,14 @@ from fastcs_ethercat.ads.ethercat import (
     encode_slave_states,
 )
 from fastcs_ethercat.ads.wire import encode_text
-from fastcs_ethercat.sim.coe import CoeDictionary, split_offset
+from fastcs_ethercat.sim.answers import fit
+from fastcs_ethercat.sim.coe import IDENTITY_INDEX, CoeDictionary, split_offset
 from fastcs_ethercat.sim.resolve import ResolvedMaster, ResolvedSlave
 
 MASTER_IDENTITY: Final = SlaveIdentity(
     vendor_id=2, product_code=0x00010003, revision=1844
 )
 """What the master's CoE 0x1018 reports (a real CX's EtherCAT device, catio dump)."""
-SLAVE_INFO_BASE: Final = 0x8000
 LOST: Final = LinkState.NOT_PRESENT
 """Link state of a slave the master cannot reach (EC_LINK_STATE_NOT_PRESENT)."""
 NEIGHBOUR_LOST: Final = LinkState.MISSING_LINK | LinkState.PORT_B
@@ -94,14 +97,8 @@ class EtherCatMaster:
     @staticmethod
     def _runtime(slave: ResolvedSlave) -> SlaveRuntime:
         coe = CoeDictionary.from_terminal(slave.terminal.coe_objects)
-        identity = slave.identity
         if len(coe):
-            coe.set_identity(
-                identity.vendor_id,
-                identity.product_code,
-                identity.revision,
-                identity.serial_number,
-            )
+            coe.set_identity(slave.identity)
         return SlaveRuntime(slave=slave, state=int(slave.initial_state), coe=coe)
 
     # -- state changes -------------------------------------------------------
@@ -151,9 +148,7 @@ class EtherCatMaster:
         data = self._query(group, offset)
         if isinstance(data, int):
             return data, b""
-        if length < len(data):
-            return AdsReturnCode.DEVICE_INVALID_SIZE, b""
-        return AdsReturnCode.NO_ERROR, data
+        return fit(data, length)
 
     def write(self, group: int, offset: int, data: bytes) -> int:
         if group == EtherCatMasterGroup.MASTER_STATE:
@@ -211,26 +206,17 @@ class EtherCatMaster:
         """The master's own small dictionary (identity, slave types/names)."""
         index, subindex, _ = split_offset(offset)
         data: bytes | None = None
-        if index == 0x1018 and 1 <= subindex <= 4:
-            identity = MASTER_IDENTITY
-            value = (
-                identity.vendor_id,
-                identity.product_code,
-                identity.revision,
-                identity.serial_number,
-            )[subindex - 1]
-            data = value.to_bytes(4, "little")
-        elif SLAVE_INFO_BASE <= index < SLAVE_INFO_BASE + len(self.slaves):
-            slave = self.slaves[index - SLAVE_INFO_BASE].slave
-            if subindex == 2:
+        if index == IDENTITY_INDEX and 1 <= subindex <= 4:
+            data = astuple(MASTER_IDENTITY)[subindex - 1].to_bytes(4, "little")
+        elif SLAVE_INFO_INDEX <= index < SLAVE_INFO_INDEX + len(self.slaves):
+            slave = self.slaves[index - SLAVE_INFO_INDEX].slave
+            if subindex == SLAVE_TYPE_SUBINDEX:
                 data = encode_text(slave.type_name)
-            elif subindex == 3:
+            elif subindex == SLAVE_NAME_SUBINDEX:
                 data = encode_text(slave.name)
         if data is None:
             return AdsReturnCode.DEVICE_INVALID_OFFSET, b""
-        if length < len(data):
-            return AdsReturnCode.DEVICE_INVALID_SIZE, b""
-        return AdsReturnCode.NO_ERROR, data
+        return fit(data, length)
 
     # -- ADS on a slave's port (mailbox) ------------------------------------------
 

@@ -16,7 +16,7 @@ only after it has seen the response.
 from __future__ import annotations
 
 import itertools
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Final
 
@@ -34,20 +34,16 @@ from fastcs_ethercat.ads.netid import AmsAddress
 NANOSECONDS_PER_UNIT: Final = 100
 """Cycle time and max delay travel in 100 ns units."""
 
-CYCLIC_MODES: Final = frozenset(
-    {
-        TransmissionMode.CLIENT_CYCLE,
-        TransmissionMode.SERVER_CYCLE,
-        TransmissionMode.SERVER_CYCLE_2,
-    }
-)
-ON_CHANGE_MODES: Final = frozenset(
-    {
-        TransmissionMode.CLIENT_ON_CHANGE,
-        TransmissionMode.SERVER_ON_CHANGE,
-        TransmissionMode.SERVER_ON_CHANGE_2,
-    }
-)
+ON_CHANGE_BY_MODE: Final[Mapping[int, bool]] = {
+    TransmissionMode.CLIENT_CYCLE: False,
+    TransmissionMode.SERVER_CYCLE: False,
+    TransmissionMode.SERVER_CYCLE_2: False,
+    TransmissionMode.CLIENT_ON_CHANGE: True,
+    TransmissionMode.SERVER_ON_CHANGE: True,
+    TransmissionMode.SERVER_ON_CHANGE_2: True,
+}
+"""The modes served, and whether each sends only a changed value (a cyclic
+mode sends every sample); any other mode is refused."""
 
 MAX_NOTIFICATION_SIZE: Final = 0x10000
 """Largest value one notification watches; larger asks answer 0x717."""
@@ -126,11 +122,8 @@ class NotificationRegistry:
         now_ns: int,
     ) -> tuple[int, int]:
         """Register; return (result, handle). The value must be readable now."""
-        if request.transmission_mode in CYCLIC_MODES:
-            on_change = False
-        elif request.transmission_mode in ON_CHANGE_MODES:
-            on_change = True
-        else:
+        on_change = ON_CHANGE_BY_MODE.get(request.transmission_mode)
+        if on_change is None:
             return AdsReturnCode.DEVICE_TRANSMISSION_MODE_NOT_SUPPORTED, 0
         if not 0 < request.length <= MAX_NOTIFICATION_SIZE:
             return AdsReturnCode.DEVICE_INVALID_WATCH_SIZE, 0

@@ -51,7 +51,9 @@ from fastcs_ethercat.ads.sums import (
     SumWriteResponse,
 )
 from fastcs_ethercat.ads.wire import decode_text
+from fastcs_ethercat.sim.answers import Outcome, fit
 from fastcs_ethercat.sim.device import SimDevice
+from fastcs_ethercat.sim.image import read_bits, read_slice
 from fastcs_ethercat.sim.itemfaults import item_error
 from fastcs_ethercat.sim.layout import AREAS, INPUTS, OUTPUTS, ImageArea
 from fastcs_ethercat.sim.master import SlaveRuntime
@@ -77,7 +79,6 @@ _SUM_GROUPS: Final = frozenset(
 )
 _U32: Final = struct.Struct("<I")
 
-Outcome = tuple[int, bytes]
 _Sum = TypeVar("_Sum", SumReadRequest, SumWriteRequest, SumReadWriteRequest)
 
 
@@ -90,13 +91,6 @@ class RunState:
     @property
     def ads_state(self) -> int:
         return int(AdsState.RUN if self.running else AdsState.STOP)
-
-
-def fit(data: bytes, length: int) -> Outcome:
-    """The answer to a read of `length` bytes: all of `data` if it fits."""
-    if length < len(data):
-        return AdsReturnCode.DEVICE_INVALID_SIZE, b""
-    return AdsReturnCode.NO_ERROR, data
 
 
 def request_name(data: bytes) -> str:
@@ -359,9 +353,9 @@ class DevicePort(Port):
             areas = {area.byte_group: image.buffer(area) for area in AREAS}
             bits = {area.bit_group: image.buffer(area) for area in AREAS}
             outcomes = [
-                _slice(areas[i.index_group], i.index_offset, i.length)
+                read_slice(areas[i.index_group], i.index_offset, i.length)
                 if i.index_group in areas
-                else _bit(bits[i.index_group], i.index_offset)
+                else read_bits(bits[i.index_group], i.index_offset, 1)
                 if i.length == 1 and i.index_group in bits
                 else self._sub_read(i.index_group, i.index_offset, i.length)
                 for i in request.items
@@ -616,26 +610,6 @@ class SumReadPlans:
         self.plans[bytes(data)] = compile_sum_read(items, inputs, outputs, by_handle)
 
 
-def _slice(buffer: bytearray, offset: int, length: int) -> Outcome:
-    """A byte-group sub-read of a sum read, without the general dispatch."""
-    end = offset + length
-    if end > len(buffer):
-        if offset > len(buffer):
-            return AdsReturnCode.DEVICE_INVALID_OFFSET, b""
-        return AdsReturnCode.DEVICE_INVALID_SIZE, b""
-    return AdsReturnCode.NO_ERROR, bytes(buffer[offset:end])
-
-
-def _bit(buffer: bytearray, bit_offset: int) -> Outcome:
-    """A one-bit sub-read of a sum read (one byte, 0 or 1)."""
-    if bit_offset >= 8 * len(buffer):
-        return AdsReturnCode.DEVICE_INVALID_OFFSET, b""
-    return AdsReturnCode.NO_ERROR, _BIT_BYTES[
-        buffer[bit_offset >> 3] >> (bit_offset & 7) & 1
-    ]
-
-
-_BIT_BYTES: Final = (b"\x00", b"\x01")
 _READ_ONLY_GROUPS: Final = frozenset(
     {
         IndexGroup.SYM_UPLOAD_INFO,
@@ -671,6 +645,5 @@ __all__ = [
     "RunState",
     "SlavePort",
     "SystemServicePort",
-    "fit",
     "request_name",
 ]

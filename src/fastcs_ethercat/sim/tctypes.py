@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Final
 
 from fastcs_ethercat.ads.constants import AdsDataType, DataTypeFlag
@@ -69,7 +69,7 @@ class TcType:
     named: bool = False
     """Listed in the data-type table (structures and named arrays)."""
     _members_by_name: dict[str, TcMember] = field(
-        default_factory=dict, repr=False, compare=False
+        default_factory=dict, init=False, repr=False, compare=False
     )
 
     def __post_init__(self) -> None:
@@ -203,16 +203,7 @@ class TypeNamer:
         while name in self._names:
             name = f"{base}_{number}{suffix}"
             number += 1
-        named = TcType(
-            name=name,
-            ads_type=AdsDataType.BIGTYPE,
-            bit_size=build.bit_size,
-            members=build.members,
-            element=build.element,
-            lower_bound=build.lower_bound,
-            count=build.count,
-            named=True,
-        )
+        named = replace(build, name=name, ads_type=AdsDataType.BIGTYPE, named=True)
         self._by_layout[key] = named
         self._names.add(name)
         self.types.append(named)

@@ -1,6 +1,7 @@
 """Terminal YAML: models, load/save, registry, generation from ESI, regenerate.
 
-The YAML schema is documented in `fastcs_ethercat.terminals.model`.
+The YAML schema and its models (`TerminalType` and its parts) are in
+`fastcs_ethercat.terminals.model`, the one place to import them from.
 
 Public API:
 
@@ -26,16 +27,6 @@ from fastcs_ethercat.terminals.files import (
 from fastcs_ethercat.terminals.generate import terminal_from_esi
 from fastcs_ethercat.terminals.loader import load_terminals, terminal_paths
 from fastcs_ethercat.terminals.merge import ChangeReport, merge_terminal
-from fastcs_ethercat.terminals.model import (
-    CoeObject,
-    CoeSubItem,
-    Identity,
-    Oversampling,
-    PdoGroup,
-    SymbolMember,
-    SymbolNode,
-    TerminalType,
-)
 from fastcs_ethercat.terminals.registry import (
     RegisteredTerminal,
     RegistryMatch,
@@ -50,19 +41,11 @@ from fastcs_ethercat.terminals.symbols import (
 
 __all__ = [
     "ChangeReport",
-    "CoeObject",
-    "CoeSubItem",
     "ExpandedMember",
     "ExpandedSymbol",
-    "Identity",
-    "Oversampling",
-    "PdoGroup",
     "RegisteredTerminal",
     "RegistryMatch",
-    "SymbolMember",
-    "SymbolNode",
     "TerminalRegistry",
-    "TerminalType",
     "UnknownGroupError",
     "expanded_symbols",
     "load_terminals",

@@ -23,11 +23,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.esi.catalog import EsiCatalog
-from fastcs_ethercat.terminals.files import (
-    CATIO_LAYOUT_KEY,
-    read_text,
-    validation_error,
-)
+from fastcs_ethercat.terminals.files import CATIO_LAYOUT_KEY, read_text
 from fastcs_ethercat.terminals.generate import terminal_from_esi
 from fastcs_ethercat.terminals.model import SymbolMember, SymbolNode, TerminalType
 from fastcs_ethercat.terminals.names import CHANNEL, expand
@@ -38,7 +34,7 @@ from fastcs_ethercat.terminals.selection import (
     rename_symbol,
     select_group,
 )
-from fastcs_ethercat.terminals.yaml_io import LocatedYaml, parse_yaml
+from fastcs_ethercat.terminals.yaml_io import LocatedYaml, parse_yaml, validation_error
 
 COMPOSITE_TYPES_KEY = "composite_types"
 

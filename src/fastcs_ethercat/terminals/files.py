@@ -15,7 +15,6 @@ from pathlib import Path
 from typing import Any
 
 from pydantic import ValidationError
-from pydantic_core import ErrorDetails
 
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.terminals.checks import check_terminal, terminal_problems
@@ -24,8 +23,9 @@ from fastcs_ethercat.terminals.yaml_io import (
     Loc,
     LocatedYaml,
     dump_yaml,
-    format_loc,
+    located_error,
     parse_yaml,
+    validation_error,
 )
 
 CATIO_LAYOUT_KEY = "terminal_types"
@@ -92,44 +92,6 @@ def validate_terminal(located: LocatedYaml, body: Any, loc: Loc) -> TerminalType
         first = problems[0]
         raise located_error(located, (*loc, *first.loc), first.message, len(problems))
     return terminal
-
-
-def validation_error(
-    located: LocatedYaml, loc: Loc, error: ValidationError
-) -> UserError:
-    """The first pydantic error as one line at its place in the file."""
-    details = error.errors()
-    first = details[0]
-    error_loc, message = _friendly(first)
-    return located_error(located, (*loc, *error_loc), message, len(details))
-
-
-def located_error(
-    located: LocatedYaml, loc: Loc, message: str, count: int
-) -> UserError:
-    """UserError at `loc`'s line, prefixed with the key path."""
-    more = ""
-    if count > 1:
-        more = f" (and {count - 1} more problem{'s' if count > 2 else ''})"
-    return UserError(
-        f"{format_loc(loc)}: {message}{more}",
-        path=located.path,
-        where=located.where(loc),
-    )
-
-
-def _friendly(detail: ErrorDetails) -> tuple[Loc, str]:
-    loc: Loc = tuple(detail["loc"])
-    kind = detail["type"]
-    if kind == "extra_forbidden":
-        return loc, f"unknown key {loc[-1]!r}"
-    if kind == "missing":
-        return loc[:-1], f"missing key {loc[-1]!r}"
-    value = detail.get("input")
-    shown = repr(value)
-    if len(shown) > 40:
-        shown = shown[:37] + "..."
-    return loc, f"{detail['msg']} (got {shown})"
 
 
 def terminal_file_text(terminals: Mapping[str, TerminalType]) -> str:

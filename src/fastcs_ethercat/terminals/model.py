@@ -377,6 +377,11 @@ class CoeObject(_Model):
         default_factory=list, description="Sub-indices of a record or array."
     )
 
+    def access_of(self, item: CoeObject | CoeSubItem) -> CoeAccess | None:
+        """A sub-item without an access of its own has its object's (the IOC
+        and the simulator both judge writes by this)."""
+        return item.access or self.access
+
 
 class Oversampling(_Model):
     """Samples per cycle of an oversampling terminal (EL37xx, EL47xx, ELM37xx)."""

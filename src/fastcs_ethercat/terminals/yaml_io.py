@@ -14,6 +14,8 @@ from pathlib import Path
 from typing import Any
 
 import yaml
+from pydantic import ValidationError
+from pydantic_core import ErrorDetails
 from yaml.nodes import MappingNode, Node, ScalarNode, SequenceNode
 
 from fastcs_ethercat.errors import UserError
@@ -51,6 +53,50 @@ def format_loc(loc: Loc) -> str:
         else:
             text += f".{part}" if text else str(part)
     return text
+
+
+def validation_error(
+    located: LocatedYaml, loc: Loc, error: ValidationError
+) -> UserError:
+    """The first pydantic problem of the model validated at `loc`, as one line
+    at its place in the file (terminal files and chain files alike)."""
+    details = error.errors()
+    error_loc, message = _friendly(details[0])
+    return located_error(located, (*loc, *error_loc), message, len(details))
+
+
+def located_error(
+    located: LocatedYaml, loc: Loc, message: str, count: int = 1
+) -> UserError:
+    """UserError at `loc`'s line, prefixed with the key path; `count`: the
+    problems found in all (the others are counted, not listed)."""
+    more = ""
+    if count > 1:
+        more = f" (and {count - 1} more problem{'s' if count > 2 else ''})"
+    key_path = format_loc(loc)
+    return UserError(
+        f"{key_path}: {message}{more}" if key_path else f"{message}{more}",
+        path=located.path,
+        where=located.where(loc),
+    )
+
+
+def _friendly(detail: ErrorDetails) -> tuple[Loc, str]:
+    """A pydantic problem in the words of the file: an unknown or missing
+    key by name; a validator's own message as it is; else the value shown."""
+    loc: Loc = tuple(detail["loc"])
+    kind = detail["type"]
+    if kind == "extra_forbidden":
+        return loc, f"unknown key {loc[-1]!r}"
+    if kind == "missing":
+        return loc[:-1], f"missing key {loc[-1]!r}"
+    message = detail["msg"].removeprefix("Value error, ")
+    if kind == "value_error":
+        return loc, message
+    shown = repr(detail.get("input"))
+    if len(shown) > 40:
+        shown = shown[:37] + "..."
+    return loc, f"{message} (got {shown})"
 
 
 def parse_yaml(text: str, path: Path | str) -> LocatedYaml:

@@ -58,7 +58,7 @@ from fastcs_ethercat.ioc.process_stats import ProcessStats
 from fastcs_ethercat.ioc.publish import Publisher
 from fastcs_ethercat.ioc.reconnect import Reconnection
 from fastcs_ethercat.ioc.supervisor import LinkState
-from fastcs_ethercat.logs import log_at_most
+from fastcs_ethercat.logs import first_names, log_at_most
 from fastcs_ethercat.terminals.registry import TerminalRegistry
 
 logger = logging.getLogger(__name__)
@@ -66,8 +66,6 @@ logger = logging.getLogger(__name__)
 STATS_PERIOD_S: Final = 1.0
 WARNINGS_SHOWN: Final = 15
 """Start-up warnings logged before one line says how many more there are."""
-NAMES_SHOWN: Final = 3
-"""Terminals a folded warning names before it counts the rest."""
 PROCESS_LEAVES: Final = (
     "Version",
     "StartTime",
@@ -427,10 +425,7 @@ def fold_by_terminal(warnings: Sequence[str], terminals: Collection[str]) -> lis
         if len(names) == 1:
             folded.append(f"{names[0]}: {text}")
             continue
-        shown = ", ".join(names[:NAMES_SHOWN])
-        if len(names) > NAMES_SHOWN:
-            shown += f" and {len(names) - NAMES_SHOWN} more"
-        folded.append(f"{len(names)} terminals ({shown}): {text}")
+        folded.append(f"{len(names)} terminals ({first_names(names)}): {text}")
     return folded
 
 
@@ -451,18 +446,10 @@ def _root_attributes(
         "Terminals": _fixed(Int(), terminals, "Terminals served"),
         "PvCount": AttrR(Int(), description="PVs served (CA names)"),
         "Unserved": AttrR(Int(), description="Points with no PV (see log)"),
-        "PollCycleTime": AttrR(
-            ExactFloat(units="ms", prec=2), description="Last poll cycle"
-        ),
-        "PollRate": AttrR(
-            ExactFloat(units="Hz", prec=1), description="Poll cycles per second"
-        ),
-        "AdsRequestRate": AttrR(
-            ExactFloat(units="1/s", prec=1), description="ADS requests per second"
-        ),
-        "PostRate": AttrR(
-            ExactFloat(units="1/s", prec=1), description="Polled values posted per s"
-        ),
+        "PollCycleTime": _figure("ms", 2, "Last poll cycle"),
+        "PollRate": _figure("Hz", 1, "Poll cycles per second"),
+        "AdsRequestRate": _figure("1/s", 1, "ADS requests per second"),
+        "PostRate": _figure("1/s", 1, "Polled values posted per s"),
         "PollErrors": AttrR(Int(), description="Failed poll reads"),
         "LastError": AttrR(String(), description="Last ADS error"),
         "ConnectionState": AttrR(
@@ -471,26 +458,23 @@ def _root_attributes(
             description="Link to the target",
         ),
         "Reconnects": AttrR(Int(), description="Reconnects and resyncs"),
-        "LastRecovery": AttrR(
-            ExactFloat(units="s", prec=2), description="Last outage, loss to poll"
-        ),
+        "LastRecovery": _figure("s", 2, "Last outage, loss to poll"),
         "ChainChanges": AttrR(String(), description="Chain change at reconnect"),
         "InvalidPvs": AttrR(Int(), description="Attributes in INVALID alarm"),
         "Version": _fixed(String(), __version__, "fastcs-ethercat version"),
         "StartTime": _fixed(String(), process.start_text(), "IOC start (local time)"),
-        "Uptime": AttrR(
-            ExactFloat(units="s", prec=0), description="Seconds since IOC start"
-        ),
-        "CpuLoad": AttrR(
-            ExactFloat(units="%", prec=1), description="IOC CPU, % of one core"
-        ),
-        "MemoryUsed": AttrR(
-            ExactFloat(units="MiB", prec=1), description="IOC resident memory"
-        ),
+        "Uptime": _figure("s", 0, "Seconds since IOC start"),
+        "CpuLoad": _figure("%", 1, "IOC CPU, % of one core"),
+        "MemoryUsed": _figure("MiB", 1, "IOC resident memory"),
         "PollOverruns": AttrR(
             Int(), description="Poll cycles longer than their period"
         ),
     }
+
+
+def _figure(units: str, prec: int, text: str) -> AttrR[Any, Any]:
+    """A measured figure (a time, rate or load) in `units`."""
+    return AttrR(ExactFloat(units=units, prec=prec), description=text)
 
 
 def _fixed(datatype: Any, value: Any, text: str) -> AttrR[Any, Any]:

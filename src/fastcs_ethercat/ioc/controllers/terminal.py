@@ -32,6 +32,7 @@ from fastcs_ethercat.ioc.attributes import (
 )
 from fastcs_ethercat.ioc.datatypes import AlarmBool, alarm_enum
 from fastcs_ethercat.ioc.health import COMM, Health
+from fastcs_ethercat.ioc.naming import coe_leaf
 from fastcs_ethercat.ioc.plan import CoePoint, Point, TerminalPlan
 from fastcs_ethercat.terminals.meaning import RAW_SUFFIX
 
@@ -45,8 +46,6 @@ DIAGNOSTIC_LEAVES: Final = (
 )
 """Attributes every terminal controller has besides its symbols (PV leaves)."""
 COE_REFRESH_LEAF: Final = "CoeRefresh"
-COE_LEAF_PREFIX: Final = "Coe "
-"""A CoE attribute's leaf is `Coe <attribute>` -> `CoeFilterSettings`."""
 UNKNOWN_TYPE: Final = "unknown"
 SLAVE: Final = "slave"
 """Health reason: the terminal is not in OP or lost its link."""
@@ -57,10 +56,6 @@ COE_READ: Final = "coe"
 PvPlace = tuple[str, ...]
 """Where an attribute sits below its terminal: its sub-controller's segment
 (a channel, a CoE object), if any, then its own (`("CH1", "Value")`)."""
-
-
-def coe_leaf(attribute: str) -> str:
-    return COE_LEAF_PREFIX + attribute
 
 
 def raw_leaf(point: Point) -> str:

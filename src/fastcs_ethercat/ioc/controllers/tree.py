@@ -31,7 +31,6 @@ from fastcs_ethercat.ioc.controllers.terminal import (
     GenericTerminalController,
     PvPlace,
     TerminalController,
-    coe_leaf,
     raw_leaf,
 )
 from fastcs_ethercat.ioc.datatypes import type_label
@@ -42,6 +41,7 @@ from fastcs_ethercat.ioc.naming import (
     NodeKind,
     PvNames,
     PvRequest,
+    coe_leaf,
     coe_request,
     point_request,
     twin_request,
