@@ -31,6 +31,7 @@ from pathlib import Path
 
 from lxml import etree
 
+from fastcs_ethercat.bench.esi_sections import full_parse_cpu_s
 from fastcs_ethercat.esi import build_catalog, parse_all
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
@@ -46,22 +47,6 @@ def median_seconds(action: Callable[[], object], runs: int) -> float:
         action()
         times.append(time.perf_counter() - start)
     return statistics.median(times)
-
-
-def cpu_medians(files: list[Path], esi_dir: Path, runs: int) -> tuple[float, float]:
-    """Median CPU seconds of a plain `lxml.etree.fromstring` of every file and
-    of `parse_all`, taken in turn (as `fastcs-ethercat bench` does), so that
-    a change of the machine's load touches both alike."""
-    plain, full = [], []
-    for _ in range(runs):
-        start = time.process_time()
-        for path in files:
-            etree.fromstring(path.read_bytes())
-        plain.append(time.process_time() - start)
-        start = time.process_time()
-        parse_all(esi_dir)
-        full.append(time.process_time() - start)
-    return statistics.median(plain), statistics.median(full)
 
 
 def regenerate_copy(esi_dir: Path, scratch: Path) -> None:
@@ -105,7 +90,7 @@ def main() -> None:
         warm_s = median_seconds(lambda: build_catalog(args.esi_dir), args.runs)
         devices = len(build_catalog(args.esi_dir))
         full_s = median_seconds(lambda: parse_all(args.esi_dir), max(1, args.runs))
-        plain_cpu_s, full_cpu_s = cpu_medians(files, args.esi_dir, args.runs)
+        plain_cpu_s, full_cpu_s, _, _ = full_parse_cpu_s(args.esi_dir, args.runs)
         regenerate_s = median_seconds(
             lambda: regenerate_copy(args.esi_dir, Path(cache_home)), args.runs
         )
