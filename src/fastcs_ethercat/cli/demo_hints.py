@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Final
 
 from fastcs_ethercat.cli.ports import CA_SERVER_PORT, PVA_SERVER_PORT, DemoPorts
+from fastcs_ethercat.loopback import LOOPBACK
 
 NUMBER_PV_SUFFIX: Final = ":MOD5:CH1:Value"
 """The demo's first EL3104 (`Term 5`): a sine."""
@@ -72,14 +73,14 @@ class DemoHints:
     def _ca_env(self) -> dict[str, str]:
         return {
             "EPICS_CA_AUTO_ADDR_LIST": "NO",
-            "EPICS_CA_ADDR_LIST": "127.0.0.1",
+            "EPICS_CA_ADDR_LIST": LOOPBACK,
             "EPICS_CA_SERVER_PORT": str(self.ports.ca),
         }
 
     def _pva_env(self) -> dict[str, str]:
         return {
             "EPICS_PVA_AUTO_ADDR_LIST": "NO",
-            "EPICS_PVA_ADDR_LIST": "127.0.0.1",
+            "EPICS_PVA_ADDR_LIST": LOOPBACK,
             "EPICS_PVA_BROADCAST_PORT": str(self.ports.pva_broadcast),
         }
 

@@ -14,7 +14,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Final
 
-LOOPBACK: Final = "127.0.0.1"
+from fastcs_ethercat.loopback import LOOPBACK
+
 CA_SERVER_PORT: Final = 5064
 PVA_SERVER_PORT: Final = 5075
 PVA_BROADCAST_PORT: Final = 5076

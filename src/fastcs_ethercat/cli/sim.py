@@ -21,6 +21,7 @@ from fastcs_ethercat.cli.options import (
     terminals_dir,
 )
 from fastcs_ethercat.errors import UserError
+from fastcs_ethercat.loopback import LOOPBACK
 from fastcs_ethercat.shipped import BUILTIN_TERMINALS_DIR
 
 log = logging.getLogger("fastcs_ethercat.sim")
@@ -60,7 +61,7 @@ def sim_command(
     ] = None,
     host: Annotated[
         str, typer.Option("--host", metavar="ADDRESS", help="Address to bind.")
-    ] = "127.0.0.1",
+    ] = LOOPBACK,
     port: Annotated[int, _port_option("--port", "AMS/TCP")] = ADS_TCP_PORT,
     udp_port: Annotated[
         int, _port_option("--udp-port", "UDP discovery and add-route")

@@ -31,6 +31,7 @@ from rich.progress import (
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.esi.catalog import EsiCatalog
 from fastcs_ethercat.esi.model import CatalogEntry, EsiDevice, parse_esi_int
+from fastcs_ethercat.loopback import LOOPBACK
 from fastcs_ethercat.terminals.esi_sources import (
     VENDOR_ZIP_URL,
     cached_zip,
@@ -685,7 +686,7 @@ def edit_command(
     ] = None,
     host: Annotated[
         str, typer.Option("--host", help="Address to serve on.")
-    ] = "127.0.0.1",
+    ] = LOOPBACK,
     port: Annotated[
         int, typer.Option("--port", help="Port to serve on (0: any free one).")
     ] = 8080,

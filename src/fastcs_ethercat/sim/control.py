@@ -30,6 +30,7 @@ from http import HTTPStatus
 from typing import Any, Final, Protocol, TypeVar
 from urllib.parse import unquote, urlsplit
 
+from fastcs_ethercat.loopback import LOOPBACK
 from fastcs_ethercat.sim.faults import Fault, FaultError, FaultKind, parse_fault
 from fastcs_ethercat.sim.server import AmsServer
 
@@ -359,7 +360,7 @@ class ControlHttpServer:
         self._server: asyncio.Server | None = None
         self.port = 0
 
-    async def start(self, host: str = "127.0.0.1", port: int = 0) -> None:
+    async def start(self, host: str = LOOPBACK, port: int = 0) -> None:
         self._server = await asyncio.start_server(self._serve, host, port)
         self.port = self._server.sockets[0].getsockname()[1]
 

@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any, Final, Self
 from urllib.parse import quote
 
+from fastcs_ethercat.loopback import LOOPBACK
 from fastcs_ethercat.process import ChildProcess, NotReadyError
 
 READY_TIMEOUT_SECONDS: Final = 60.0
@@ -42,7 +43,7 @@ class SimProcess(ChildProcess):
         terminals: Path | str | None = None,
         revisions: Sequence[Path | str] = (),
         seed: int | None = None,
-        host: str = "127.0.0.1",
+        host: str = LOOPBACK,
         port: int = 0,
         udp_port: int = 0,
         control_port: int = 0,

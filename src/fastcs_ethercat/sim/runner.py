@@ -23,6 +23,7 @@ from typing import Any, Final, Protocol, Self
 
 from fastcs_ethercat.ads.constants import ADS_TCP_PORT, ADS_UDP_PORT
 from fastcs_ethercat.ads.netid import AmsNetId
+from fastcs_ethercat.loopback import LOOPBACK
 from fastcs_ethercat.process import ready_line as ready_line_of
 from fastcs_ethercat.sim.control import (
     ControlHttpServer,
@@ -35,7 +36,7 @@ from fastcs_ethercat.sim.udp import UdpResponder
 
 log = logging.getLogger(__name__)
 
-CONTROL_HOST: Final = "127.0.0.1"
+CONTROL_HOST: Final = LOOPBACK
 """The control API can force values and break things: loopback only, always."""
 DEFAULT_CYCLE_SECONDS: Final = 0.010
 THREAD_START_TIMEOUT_SECONDS: Final = 30.0
@@ -61,7 +62,7 @@ class SimulatorConfig:
     `udp_port` / `control_port` None = that service is off; `cycle_seconds`
     None = the model's own task cycle."""
 
-    host: str = "127.0.0.1"
+    host: str = LOOPBACK
     port: int = ADS_TCP_PORT
     udp_port: int | None = ADS_UDP_PORT
     control_port: int | None = None

@@ -41,6 +41,7 @@ from fastcs_ethercat.ads.sums import (
     SumDeleteNotificationsRequest,
     SumDeleteNotificationsResponse,
 )
+from fastcs_ethercat.loopback import LOOPBACK
 from fastcs_ethercat.sim.counters import RequestCounters, request_index_group
 from fastcs_ethercat.sim.notifications import HandleAllocator, NotificationRegistry
 
@@ -194,7 +195,7 @@ class AmsServer:
         self.max_request_size = max_request_size
         self.handles = HandleAllocator()
         self.connections: set[AmsConnection] = set()
-        self.host = "127.0.0.1"
+        self.host = LOOPBACK
         self.port = 0
         self._monotonic_ns = monotonic_ns
         self._net_ids = frozenset(target.net_ids)
@@ -207,7 +208,7 @@ class AmsServer:
 
     # -- life cycle --------------------------------------------------------------
 
-    async def start(self, host: str = "127.0.0.1", port: int = 0) -> None:
+    async def start(self, host: str = LOOPBACK, port: int = 0) -> None:
         """Listen; port 0 takes a free port (read it back from `port`)."""
         self.host = host
         self.port = port

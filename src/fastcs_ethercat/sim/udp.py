@@ -25,6 +25,7 @@ from fastcs_ethercat.ads.udp import (
     discover_reply,
 )
 from fastcs_ethercat.ads.udp import UdpService as UdpServiceId
+from fastcs_ethercat.loopback import LOOPBACK
 
 log = logging.getLogger(__name__)
 
@@ -77,7 +78,7 @@ class UdpResponder:
         self.port = 0
         self._transport: asyncio.DatagramTransport | None = None
 
-    async def start(self, host: str = "127.0.0.1", port: int = 0) -> None:
+    async def start(self, host: str = LOOPBACK, port: int = 0) -> None:
         loop = asyncio.get_running_loop()
         transport, _ = await loop.create_datagram_endpoint(
             lambda: _UdpProtocol(self), local_addr=(host, port)
