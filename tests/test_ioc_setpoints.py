@@ -85,7 +85,7 @@ async def test_the_setpoints_own_problem_outlasts_the_readbacks() -> None:
     await health.post(output.attribute, 1)  # a fresh value: COMM is gone
     back = output.shown()
     health.setpoint_fine(output.attribute)
-    await _settled()
+    health.show_setpoint(output.attribute)
 
     assert lost[0][1:] == lost[1][1:] == (3, "COMM: lost")
     assert back == ((1, 0, ""), (3, 3, "WRITE: not written: target away"))
@@ -153,6 +153,46 @@ async def test_a_resync_does_not_turn_a_refused_write_into_waiting() -> None:
     assert answered == (9, 3, "WRITE: not written: target away")
     assert after_readback == (9, 3, "WRITE: not written: target away")
     assert output.shown()[1] == (7, 0, "")
+
+
+async def test_a_resync_while_a_refused_write_is_being_shown_keeps_it_refused() -> None:
+    """The race the online-change test met under load: the resync's `follow`
+    runs while `failed` is still showing the refused value (it awaits FastCS's
+    setpoint callbacks), then the first readback lands before the put's
+    answer. The setpoint must stay INVALID/WRITE with the value asked for,
+    not take the readback's value without an alarm (`caput -c` read it as a
+    put that was done)."""
+    output, health = Output(), Health()
+    setpoints = Setpoints(health)
+    setpoints.follow([output.attribute])
+    await health.post(output.attribute, 5)
+    await _settled()
+    refusing = asyncio.create_task(
+        setpoints.failed(output.attribute, 9, "not written: target away")
+    )
+    await asyncio.sleep(0)  # `failed` is inside its sync of the setpoints
+    setpoints.follow([output.attribute])  # the resync ends meanwhile
+    await refusing
+    await health.post(output.attribute, 5)  # the first readback after it
+    await _settled()
+
+    assert output.shown()[1] == (9, 3, "WRITE: not written: target away")
+
+
+async def test_a_readback_being_shown_does_not_undo_a_refused_write() -> None:
+    """The other order: the setpoint is taking the first readback after a
+    resync (awaiting FastCS's setpoint callbacks) when a write is refused:
+    the refusal is what the setpoint ends up showing."""
+    output, health = Output(), Health()
+    setpoints = Setpoints(health)
+    setpoints.follow([output.attribute])
+    taking = asyncio.create_task(health.post(output.attribute, 5))
+    await asyncio.sleep(0)  # the readback's value is being shown
+    await setpoints.failed(output.attribute, 9, "not written: target away")
+    await taking
+    await _settled()
+
+    assert output.shown()[1] == (9, 3, "WRITE: not written: target away")
 
 
 async def test_an_unknown_outcome_waits_for_the_readback() -> None:

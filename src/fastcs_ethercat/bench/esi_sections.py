@@ -62,23 +62,32 @@ def terminals_regenerate_s(context: BenchContext) -> float:
     return round(statistics.median(times), 3)
 
 
-def esi_full_parse(context: BenchContext) -> dict[str, float | int]:
-    """Every device of the ESI source fully parsed (`parse_all`) against a
-    plain `lxml.etree.fromstring` of the same documents, in this run: CPU
-    seconds (process time, so other load does not count), medians."""
-    documents = find_documents(context.esi)
+def full_parse_cpu_s(source: Path, runs: int) -> tuple[float, float, int, int]:
+    """Median CPU seconds (process time, so other load does not count) of a
+    plain `lxml.etree.fromstring` of every ESI document under `source` and of
+    `parse_all` of them, taken in turn so that a change of the machine's
+    load touches both alike; with the document and device counts."""
+    documents = find_documents(source)
     plain_s, full_s, devices = [], [], 0
-    for _ in range(FULL_PARSE_RUNS):
+    for _ in range(runs):
         start = time.process_time()
         for document in documents:
             etree.fromstring(document.read())
         plain_s.append(time.process_time() - start)
         start = time.process_time()
-        devices = len(parse_all(context.esi).devices)
+        devices = len(parse_all(source).devices)
         full_s.append(time.process_time() - start)
     plain, full = statistics.median(plain_s), statistics.median(full_s)
+    return plain, full, len(documents), devices
+
+
+def esi_full_parse(context: BenchContext) -> dict[str, float | int]:
+    """Every device of the ESI source fully parsed (`parse_all`) against a
+    plain `lxml.etree.fromstring` of the same documents, in this run: CPU
+    seconds, medians."""
+    plain, full, documents, devices = full_parse_cpu_s(context.esi, FULL_PARSE_RUNS)
     return {
-        "documents": len(documents),
+        "documents": documents,
         "devices": devices,
         "plain_lxml_cpu_s": round(plain, 3),
         "full_parse_cpu_s": round(full, 3),
@@ -96,5 +105,6 @@ __all__ = [
     "default_extra_esi",
     "esi_catalog_s",
     "esi_full_parse",
+    "full_parse_cpu_s",
     "terminals_regenerate_s",
 ]

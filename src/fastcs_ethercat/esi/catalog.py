@@ -472,6 +472,7 @@ class EsiParseResult:
     files: tuple[EsiFileResult, ...]
 
 
+@held()  # one burst for every document: see `collector`
 def parse_all(source: SourceArg, *, strict: bool = False) -> EsiParseResult:
     """Fully parse every device under `source` (see `build_catalog`).
 
@@ -481,9 +482,11 @@ def parse_all(source: SourceArg, *, strict: bool = False) -> EsiParseResult:
     devices: list[EsiDevice] = []
     warnings: list[UserError] = []
     files: list[EsiFileResult] = []
+    memo = ParseMemo()
     for document in find_documents(source):
         try:
-            result = parse_document(document.read(), document.name, strict=strict)
+            data = document.read()
+            result = parse_document(data, document.name, strict=strict, memo=memo)
         except UserError as error:
             if strict:
                 raise

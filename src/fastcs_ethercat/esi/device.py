@@ -86,13 +86,8 @@ def _dc_op_mode(element: Element) -> EsiDcOpMode:
             if sm is None:
                 raise fail(child, f"DC op mode {name!r}: <Sm> has no No attribute")
             for pdo in child.iterfind("Pdo"):
-                pdos.append(
-                    EsiDcOpModePdo(
-                        sm=sm,
-                        pdo_index=int_of(pdo, f"DC op mode {name!r} Pdo"),
-                        os_factor=int_attr(pdo, "OSFac"),
-                    )
-                )
+                index = int_of(pdo, f"DC op mode {name!r} Pdo")
+                pdos.append(EsiDcOpModePdo(sm, index, int_attr(pdo, "OSFac")))
         elif tag == "VendorSpecific":
             oversampling = child.find("TwinCAT/Oversampling")
             if oversampling is not None:

@@ -14,9 +14,9 @@ type they use in `DataTypes`; PDO entries may use base types such as REAL).
 from __future__ import annotations
 
 import re
-from collections.abc import Mapping
+from typing import NamedTuple
 
-from .memo import ParseMemo, element_key
+from .memo import ParseMemo, child_keys, element_key
 from .model import (
     Access,
     EsiCoeObject,
@@ -25,7 +25,7 @@ from .model import (
     EsiDataTypeSubItem,
     EsiEnumItem,
 )
-from .xmltext import Element, EsiFormatError, fail, int_of, text_of
+from .xmltext import NUMBERS, Element, EsiFormatError, fail, int_of, text_of
 
 _BASE_TYPE = re.compile(
     r"(?:BOOL(?:EAN)?|BIT\d*|BITARR\d+|BYTE|WORD|DWORD|LWORD"
@@ -69,27 +69,27 @@ def _data_type_sub_item(element: Element, owner: str) -> EsiDataTypeSubItem:
     for child in element:
         tag = child.tag
         if tag == "SubIdx":
-            subindex = int_of(child, f"SubIdx of a sub-item of {owner}")
+            subindex = NUMBERS.get(child.text)
+            if subindex is None:
+                subindex = int_of(child, f"SubIdx of a sub-item of {owner}")
         elif tag == "Name":
             name = text_of(child)
         elif tag == "Type":
             type_name = text_of(child)
         elif tag == "BitSize":
-            bit_size = int_of(child, f"BitSize of {owner}.{name}")
+            bit_size = NUMBERS.get(child.text)
+            if bit_size is None:
+                bit_size = int_of(child, f"BitSize of {owner}.{name}")
         elif tag == "BitOffs":
-            bit_offset = int_of(child, f"BitOffs of {owner}.{name}")
+            bit_offset = NUMBERS.get(child.text)
+            if bit_offset is None:
+                bit_offset = int_of(child, f"BitOffs of {owner}.{name}")
         elif tag == "Flags":
             access, pdo_mapping, _ = _flags(child)
     if not type_name:
         raise fail(element, f"sub-item {name!r} of data type {owner} has no <Type>")
     return EsiDataTypeSubItem(
-        subindex=subindex,
-        name=name,
-        type_name=type_name,
-        bit_size=bit_size,
-        bit_offset=bit_offset,
-        access=access,
-        pdo_mapping=pdo_mapping,
+        subindex, name, type_name, bit_size, bit_offset, access, pdo_mapping
     )
 
 
@@ -104,7 +104,9 @@ def parse_data_type(element: Element) -> EsiDataType:
     array_elements: int | None = None
     for child in element:
         tag = child.tag
-        if tag == "Name":
+        if tag == "SubItem":
+            sub_elements.append(child)
+        elif tag == "Name":
             name = text_of(child)
         elif tag == "BitSize":
             bit_size = int_of(child, "data type BitSize")
@@ -112,8 +114,6 @@ def parse_data_type(element: Element) -> EsiDataType:
             base_type = text_of(child) or None
         elif tag == "EnumInfo":
             enum_items.append(_enum_item(child))
-        elif tag == "SubItem":
-            sub_elements.append(child)
         elif tag == "ArrayInfo" and array_elements is None:
             for info in child:
                 if info.tag == "LBound":
@@ -125,13 +125,13 @@ def parse_data_type(element: Element) -> EsiDataType:
     if bit_size is None:
         raise fail(element, f"data type {name} has no <BitSize>")
     return EsiDataType(
-        name=name,
-        bit_size=bit_size,
-        base_type=base_type,
-        enum_items=tuple(enum_items),
-        sub_items=tuple(_data_type_sub_item(sub, name) for sub in sub_elements),
-        array_lbound=array_lbound,
-        array_elements=array_elements,
+        name,
+        bit_size,
+        base_type,
+        tuple(enum_items),
+        tuple([_data_type_sub_item(sub, name) for sub in sub_elements]),
+        array_lbound,
+        array_elements,
     )
 
 
@@ -145,18 +145,28 @@ def _enum_item(element: Element) -> EsiEnumItem:
             value = int_of(child, "EnumInfo Enum")
     if value is None:
         raise fail(element, f"enum text {text!r} has no <Enum> value")
-    return EsiEnumItem(value=value, text=text)
+    return EsiEnumItem(value, text)
 
 
-def parse_data_types(element: Element) -> dict[str, EsiDataType]:
-    """`<DataTypes>` -> name -> type, checking that every reference resolves."""
+def parse_data_types(
+    element: Element, memo: ParseMemo | None = None, key: str = ""
+) -> dict[str, EsiDataType]:
+    """`<DataTypes>` -> name -> type, checking that every reference resolves.
+
+    With a `memo` and the element's `key`, each type is parsed once."""
+    children = [child for child in element if child.tag == "DataType"]
+    keys = child_keys(key, "DataType", len(children)) if memo and key else None
     types: dict[str, EsiDataType] = {}
     lines: dict[str, int | None] = {}
-    for child in element:
-        if child.tag == "DataType":
+    for position, child in enumerate(children):
+        if keys is None or memo is None:
             data_type = parse_data_type(child)
-            types.setdefault(data_type.name, data_type)
-            lines.setdefault(data_type.name, child.sourceline)
+        else:
+            data_type = memo.data_type.get(keys[position])
+            if data_type is None:
+                data_type = memo.data_type[keys[position]] = parse_data_type(child)
+        types.setdefault(data_type.name, data_type)
+        lines.setdefault(data_type.name, child.sourceline)
     for data_type in types.values():
         referenced = [sub.type_name for sub in data_type.sub_items]
         if data_type.base_type:
@@ -170,92 +180,137 @@ def parse_data_types(element: Element) -> dict[str, EsiDataType]:
     return types
 
 
-class _InfoDefaults:
-    """Defaults of one `Info/SubItem` (or an object's own `Info`)."""
-
-    __slots__ = ("default_data", "default_value", "max_value", "min_value", "unit")
-
-    def __init__(self, element: Element | None) -> None:
-        self.default_data: str | None = None
-        self.default_value: str | None = None
-        self.min_value: str | None = None
-        self.max_value: str | None = None
-        self.unit: str | None = None
-        if element is None:
-            return
-        for child in element:
-            tag = child.tag
-            if tag == "DefaultData":
-                self.default_data = text_of(child) or None
-            elif tag == "DefaultValue":
-                self.default_value = text_of(child) or None
-            elif tag == "MinValue":
-                self.min_value = text_of(child) or None
-            elif tag == "MaxValue":
-                self.max_value = text_of(child) or None
-            elif tag == "Unit":
-                self.unit = text_of(child) or None
+Defaults = list[str | None]
+"""`DefaultData`, `DefaultValue`, `MinValue`, `MaxValue`, `Unit` of an `Info`:
+the order of those fields in `EsiCoeSubItem`."""
+_DEFAULT_SLOTS = {
+    "DefaultData": 0,
+    "DefaultValue": 1,
+    "MinValue": 2,
+    "MaxValue": 3,
+    "Unit": 4,
+}
+_NO_DEFAULTS: Defaults = [None] * len(_DEFAULT_SLOTS)
 
 
-_NO_DEFAULTS = _InfoDefaults(None)
+def _defaults(info: Element) -> Defaults:
+    """The defaults an `Info` element gives (the last of each kind wins)."""
+    found = _NO_DEFAULTS.copy()
+    for child in info:
+        slot = _DEFAULT_SLOTS.get(child.tag)
+        if slot is not None:
+            text = child.text
+            found[slot] = (text.strip() or None) if text else None
+    return found
 
 
-def _enum_items_of(
-    type_name: str, types: Mapping[str, EsiDataType]
-) -> tuple[EsiEnumItem, ...]:
-    data_type = types.get(type_name)
-    return data_type.enum_items if data_type is not None else ()
+Expansion = tuple[
+    int, str, int, int, str, Access | None, str | None, tuple[EsiEnumItem, ...]
+]
+"""(subindex, name, bit size, bit offset, type, access, pdo mapping, enum
+items) of one sub-index of an object of a record or array type."""
 
 
-def _expand_sub_items(
-    data_type: EsiDataType, types: Mapping[str, EsiDataType]
-) -> list[tuple[EsiDataTypeSubItem, int, str, int, int, str]]:
-    """(item, subindex, name, bit size, bit offset, type) per sub-index."""
-    rows: list[tuple[EsiDataTypeSubItem, int, str, int, int, str]] = []
-    for item in data_type.sub_items:
-        if item.subindex is not None:
-            rows.append(
-                (
-                    item,
-                    item.subindex,
-                    item.name,
-                    item.bit_size,
-                    item.bit_offset,
-                    item.type_name,
+Rows = tuple[Expansion, ...]
+
+
+class TypeTable:
+    """A device's data types, and how each record type expands into
+    sub-indices (worked out once per type, not once per object)."""
+
+    __slots__ = ("expansions", "rows", "types")
+
+    def __init__(
+        self, types: dict[str, EsiDataType], rows: dict[Rows, Rows] | None = None
+    ) -> None:
+        self.types = types
+        self.rows: dict[Rows, Rows] = {} if rows is None else rows
+        """Expansions by value, shared by tables: equal ones are one object."""
+        self.expansions: dict[str, Rows] = {}
+
+    def expand(self, data_type: EsiDataType) -> Rows:
+        """One row per sub-index of an object of `data_type`; tables sharing
+        `rows` give the same object for equal expansions."""
+        rows = self.expansions.get(data_type.name)
+        if rows is None:
+            rows = tuple(self._expand(data_type))
+            rows = self.expansions[data_type.name] = self.rows.setdefault(rows, rows)
+        return rows
+
+    def _enum_items(self, type_name: str) -> tuple[EsiEnumItem, ...]:
+        data_type = self.types.get(type_name)
+        return data_type.enum_items if data_type is not None else ()
+
+    def _expand(self, data_type: EsiDataType) -> list[Expansion]:
+        types = self.types
+        rows: list[Expansion] = []
+        for item in data_type.sub_items:
+            access, pdo_mapping = item.access, item.pdo_mapping
+            if item.subindex is not None:
+                rows.append(
+                    (
+                        item.subindex,
+                        item.name,
+                        item.bit_size,
+                        item.bit_offset,
+                        item.type_name,
+                        access,
+                        pdo_mapping,
+                        self._enum_items(item.type_name),
+                    )
                 )
+                continue
+            array = types.get(item.type_name)
+            if array is None or array.array_elements is None:
+                continue
+            count = array.array_elements
+            first = array.array_lbound if array.array_lbound is not None else 1
+            element_type = array.base_type or item.type_name
+            base = types.get(element_type)
+            element_bits = (
+                base.bit_size
+                if base is not None
+                else (array.bit_size // count if count else 0)
             )
-            continue
-        array = types.get(item.type_name)
-        if array is None or array.array_elements is None:
-            continue
-        count = array.array_elements
-        first = array.array_lbound if array.array_lbound is not None else 1
-        element_type = array.base_type or item.type_name
-        base = types.get(element_type)
-        element_bits = (
-            base.bit_size
-            if base is not None
-            else (array.bit_size // count if count else 0)
-        )
-        for position in range(count):
-            subindex = first + position
-            rows.append(
-                (
-                    item,
-                    subindex,
-                    f"SubIndex {subindex:03d}",
-                    element_bits,
-                    item.bit_offset + position * element_bits,
-                    element_type,
+            enum_items = self._enum_items(element_type)
+            for position in range(count):
+                subindex = first + position
+                rows.append(
+                    (
+                        subindex,
+                        f"SubIndex {subindex:03d}",
+                        element_bits,
+                        item.bit_offset + position * element_bits,
+                        element_type,
+                        access,
+                        pdo_mapping,
+                        enum_items,
+                    )
                 )
-            )
-    return rows
+        return rows
 
 
-def parse_object(
-    element: Element, types: Mapping[str, EsiDataType], check_types: bool
-) -> EsiCoeObject:
-    """One `<Object>`, sub-items resolved through its data type."""
+_NO_TYPES = TypeTable({})
+
+
+class ObjectFacts(NamedTuple):
+    """What an `<Object>` says by itself, before its data type resolves it
+    (objects repeat more often than with the same types around them)."""
+
+    object_index: int
+    name: str
+    type_name: str
+    bit_size: int
+    access: Access | None
+    pdo_mapping: str | None
+    category: str | None
+    default_data: str | None
+    defaults_by_name: dict[str, Defaults]
+    """`Info/SubItem` defaults by sub-item name (the first of a name wins)."""
+
+
+def read_object(element: Element) -> ObjectFacts:
+    """The facts of one `<Object>`; errors are placed."""
     index: int | None = None
     name = ""
     type_name: str | None = None
@@ -283,94 +338,165 @@ def parse_object(
         raise fail(element, f"CoE object {name!r} has no <Index>")
     if not type_name:
         raise fail(element, f"CoE object #x{index:04x} {name!r} has no <Type>")
-    data_type = types.get(type_name)
-    if data_type is None and check_types and not is_base_type(type_name):
-        raise fail(
-            element,
-            f"CoE object #x{index:04x} {name!r} uses unknown data type {type_name!r}",
-        )
-    own = _InfoDefaults(info)
-    by_name: dict[str, _InfoDefaults] = {}
+    default_data: str | None = None
+    by_name: dict[str, Defaults] = {}
     if info is not None:
         for child in info:
-            if child.tag == "SubItem":
+            tag = child.tag
+            if tag == "SubItem":
                 sub_name = ""
-                sub_info: Element | None = None
+                defaults = _NO_DEFAULTS
                 for part in child:
-                    if part.tag == "Name":
-                        sub_name = text_of(part)
-                    elif part.tag == "Info":
-                        sub_info = part
-                by_name.setdefault(sub_name, _InfoDefaults(sub_info))
+                    part_tag = part.tag
+                    if part_tag == "Name":
+                        text = part.text
+                        sub_name = text.strip() if text else ""
+                    elif part_tag == "Info":
+                        defaults = _defaults(part)
+                if sub_name not in by_name:
+                    by_name[sub_name] = defaults
+            elif tag == "DefaultData":
+                default_data = text_of(child) or None
+    return ObjectFacts(
+        index,
+        name,
+        type_name,
+        bit_size,
+        access,
+        pdo_mapping,
+        category,
+        default_data,
+        by_name,
+    )
+
+
+def object_type(
+    facts: ObjectFacts, element: Element, table: TypeTable, check_types: bool
+) -> tuple[EsiDataType | None, Rows]:
+    """The object's data type and its expansion; an unknown type is an error."""
+    data_type = table.types.get(facts.type_name)
+    if data_type is None:
+        if check_types and not is_base_type(facts.type_name):
+            raise fail(
+                element,
+                f"CoE object #x{facts.object_index:04x} {facts.name!r} uses "
+                f"unknown data type {facts.type_name!r}",
+            )
+        return None, ()
+    return data_type, table.expand(data_type) if data_type.sub_items else ()
+
+
+def resolve_object(
+    facts: ObjectFacts, data_type: EsiDataType | None, rows: Rows
+) -> EsiCoeObject:
+    """The object with its sub-items resolved through its data type."""
+    index, name, type_name = facts.object_index, facts.name, facts.type_name
+    access = facts.access
     sub_items: list[EsiCoeSubItem] = []
-    if data_type is not None and data_type.sub_items:
-        for item, subindex, sub_name, bits, offset, sub_type in _expand_sub_items(
-            data_type, types
-        ):
+    if rows:
+        by_name = facts.defaults_by_name
+        for (
+            subindex,
+            sub_name,
+            bits,
+            offset,
+            sub_type,
+            sub_access,
+            sub_pdo_mapping,
+            enum_items,
+        ) in rows:
             defaults = by_name.get(sub_name, _NO_DEFAULTS)
             sub_items.append(
                 EsiCoeSubItem(
-                    index=index,
-                    subindex=subindex,
-                    name=sub_name,
-                    type_name=sub_type,
-                    bit_size=bits,
-                    bit_offset=offset,
-                    access=item.access or access,
-                    pdo_mapping=item.pdo_mapping,
-                    default_data=defaults.default_data,
-                    default_value=defaults.default_value,
-                    min_value=defaults.min_value,
-                    max_value=defaults.max_value,
-                    unit=defaults.unit,
-                    enum_items=_enum_items_of(sub_type, types),
+                    index,
+                    subindex,
+                    sub_name,
+                    sub_type,
+                    bits,
+                    offset,
+                    sub_access or access,
+                    sub_pdo_mapping,
+                    defaults[0],
+                    defaults[1],
+                    defaults[2],
+                    defaults[3],
+                    defaults[4],
+                    enum_items,
                 )
             )
     return EsiCoeObject(
-        index=index,
-        name=name,
-        type_name=type_name,
-        bit_size=bit_size,
-        access=access,
-        pdo_mapping=pdo_mapping,
-        category=category,
-        default_data=own.default_data,
-        sub_items=tuple(sub_items),
-        enum_items=data_type.enum_items if data_type is not None else (),
+        index,
+        name,
+        type_name,
+        facts.bit_size,
+        access,
+        facts.pdo_mapping,
+        facts.category,
+        facts.default_data,
+        tuple(sub_items),
+        data_type.enum_items if data_type is not None else (),
     )
+
+
+def parse_object(element: Element, table: TypeTable, check_types: bool) -> EsiCoeObject:
+    """One `<Object>`, sub-items resolved through its data type."""
+    facts = read_object(element)
+    return resolve_object(facts, *object_type(facts, element, table, check_types))
+
+
+def _type_table(element: Element, memo: ParseMemo | None) -> TypeTable:
+    """The `<DataTypes>` table, parsed once per memo."""
+    if memo is None:
+        return TypeTable(parse_data_types(element))
+    key = element_key(element)
+    table = memo.data_types.get(key)
+    if table is None:
+        types = parse_data_types(element, memo, key)
+        table = memo.data_types[key] = TypeTable(types, memo.rows)
+    return table
+
+
+def _objects(
+    element: Element, table: TypeTable, check: bool, memo: ParseMemo | None
+) -> dict[int, EsiCoeObject]:
+    """`<Objects>` -> objects by index (the first of an index wins)."""
+    children = [child for child in element if child.tag == "Object"]
+    keys = None
+    if memo is not None:
+        keys = child_keys(element_key(element), "Object", len(children))
+    objects: dict[int, EsiCoeObject] = {}
+    if keys is None or memo is None:
+        for child in children:
+            coe_object = parse_object(child, table, check)
+            objects.setdefault(coe_object.index, coe_object)
+        return objects
+    for child, key in zip(children, keys, strict=True):
+        facts = memo.object_facts.get(key)
+        if facts is None:
+            facts = memo.object_facts[key] = read_object(child)
+        data_type, rows = object_type(facts, child, table, check)
+        meaning = (key, id(data_type), id(rows))
+        coe_object = memo.objects.get(meaning)
+        if coe_object is None:
+            coe_object = memo.objects[meaning] = resolve_object(facts, data_type, rows)
+        objects.setdefault(coe_object.index, coe_object)
+    return objects
 
 
 def parse_dictionary(
     element: Element, memo: ParseMemo | None = None
 ) -> tuple[dict[str, EsiDataType], dict[int, EsiCoeObject]]:
     """`<Dictionary>` -> (data types by name, CoE objects by index)."""
-    types_element = element.find("DataTypes")
-    types: dict[str, EsiDataType] = {}
-    table_id = -1
-    if types_element is not None:
-        if memo is None:
-            types = parse_data_types(types_element)
-        else:
-            key = element_key(types_element)
-            cached = memo.data_types.get(key)
-            if cached is None:
-                cached = (len(memo.data_types), parse_data_types(types_element))
-                memo.data_types[key] = cached
-            table_id, types = cached
+    types_element: Element | None = None
+    objects_element: Element | None = None
+    for child in element:
+        tag = child.tag
+        if tag == "DataTypes" and types_element is None:
+            types_element = child
+        elif tag == "Objects" and objects_element is None:
+            objects_element = child
+    table = _NO_TYPES if types_element is None else _type_table(types_element, memo)
     objects: dict[int, EsiCoeObject] = {}
-    objects_element = element.find("Objects")
     if objects_element is not None:
-        check = types_element is not None
-        for child in objects_element:
-            if child.tag != "Object":
-                continue
-            if memo is None:
-                coe_object = parse_object(child, types, check)
-            else:
-                object_key = (table_id, element_key(child))
-                coe_object = memo.objects.get(object_key)
-                if coe_object is None:
-                    coe_object = parse_object(child, types, check)
-                    memo.objects[object_key] = coe_object
-            objects.setdefault(coe_object.index, coe_object)
-    return dict(types), objects
+        objects = _objects(objects_element, table, types_element is not None, memo)
+    return dict(table.types), objects

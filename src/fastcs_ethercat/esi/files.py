@@ -74,6 +74,11 @@ def _device_around(data: bytes, line: int) -> str | None:
     return label
 
 
+def placed(message: str, source: str, element: Element) -> UserError:
+    """A `UserError` naming the document and the line of `element`."""
+    return UserError(message, path=source, where=str(element.sourceline or 1))
+
+
 def read_root(data: bytes, source: str) -> Element:
     """The `<EtherCATInfo>` root of a document, or a one-line `UserError`."""
     try:
@@ -87,10 +92,10 @@ def read_root(data: bytes, source: str) -> Element:
             f"{prefix}not well-formed XML: {reason}", path=source, where=str(line)
         ) from None
     if root.tag != ROOT_TAG:
-        raise UserError(
+        raise placed(
             f"not an ESI file: root element is <{root.tag}>, expected <{ROOT_TAG}>",
-            path=source,
-            where=str(root.sourceline or 1),
+            source,
+            root,
         )
     return root
 
@@ -99,17 +104,12 @@ def vendor_id_of(root: Element, source: str) -> int:
     """`Vendor/Id` of the file (Beckhoff: 2)."""
     vendor = root.find("Vendor/Id")
     if vendor is None or not (vendor.text or "").strip():
-        raise UserError(
-            "ESI file has no <Vendor><Id>", path=source, where=str(root.sourceline or 1)
-        )
+        raise placed("ESI file has no <Vendor><Id>", source, root)
     try:
         return parse_esi_int(vendor.text or "")
     except ValueError:
-        raise UserError(
-            f"vendor id {vendor.text!r} is not a number",
-            path=source,
-            where=str(vendor.sourceline or 1),
-        ) from None
+        message = f"vendor id {vendor.text!r} is not a number"
+        raise placed(message, source, vendor) from None
 
 
 def device_elements(root: Element) -> list[Element]:
@@ -143,11 +143,8 @@ def parse_device_element(
     except EsiFormatError as error:
         raise device_error(error, device, position, source) from None
     except RecursionError:
-        raise UserError(
-            f"{device_label(device, position)}: nesting too deep",
-            path=source,
-            where=str(device.sourceline or 1),
-        ) from None
+        message = f"{device_label(device, position)}: nesting too deep"
+        raise placed(message, source, device) from None
 
 
 @dataclass(frozen=True, slots=True)
@@ -159,10 +156,14 @@ class EsiFileResult:
     warnings: tuple[UserError, ...]
 
 
-def iter_devices(root: Element, source: str) -> Iterator[EsiDevice | UserError]:
-    """Each device parsed, or the `UserError` that stopped it."""
+def iter_devices(
+    root: Element, source: str, memo: ParseMemo | None = None
+) -> Iterator[EsiDevice | UserError]:
+    """Each device parsed, or the `UserError` that stopped it (`memo`: shared
+    with other documents of the same parse)."""
     vendor_id = vendor_id_of(root, source)
-    memo = ParseMemo()
+    if memo is None:
+        memo = ParseMemo()
     for position, device in enumerate(device_elements(root)):
         try:
             yield parse_device_element(
@@ -173,12 +174,14 @@ def iter_devices(root: Element, source: str) -> Iterator[EsiDevice | UserError]:
 
 
 @held()  # a burst that only builds objects: see `collector`
-def parse_document(data: bytes, source: str, *, strict: bool = False) -> EsiFileResult:
+def parse_document(
+    data: bytes, source: str, *, strict: bool = False, memo: ParseMemo | None = None
+) -> EsiFileResult:
     """Parse every device of an ESI document held in memory."""
     root = read_root(data, source)
     devices: list[EsiDevice] = []
     warnings: list[UserError] = []
-    for item in iter_devices(root, source):
+    for item in iter_devices(root, source, memo):
         if isinstance(item, UserError):
             if strict:
                 raise item

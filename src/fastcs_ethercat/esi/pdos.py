@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from .channels import channel_template
 from .model import EsiEntry, EsiPdo, PdoDirection
-from .xmltext import Element, bool_attr, fail, int_attr, int_of, text_of
+from .xmltext import NUMBERS, Element, bool_attr, fail, int_attr, int_of, text_of
 
 PDO_TAGS: dict[str, PdoDirection] = {"TxPdo": "tx", "RxPdo": "rx"}
 
@@ -27,34 +27,33 @@ def parse_entry(element: Element) -> EsiEntry:
     data_type: str | None = None
     comment: str | None = None
     dscale: str | None = None
-    for child in element:
+    for child in element:  # the hottest loop of a PDO: numbers looked up inline
         tag = child.tag
+        text = child.text
         if tag == "Index":
-            index = int_of(child, "entry Index")
+            index = NUMBERS.get(text)
+            if index is None:
+                index = int_of(child, "entry Index")
         elif tag == "SubIndex":
-            subindex = int_of(child, "entry SubIndex")
+            subindex = NUMBERS.get(text)
+            if subindex is None:
+                subindex = int_of(child, "entry SubIndex")
         elif tag == "BitLen":
-            bit_len = int_of(child, "entry BitLen")
+            bit_len = NUMBERS.get(text)
+            if bit_len is None:
+                bit_len = int_of(child, "entry BitLen")
         elif tag == "Name":
-            name = text_of(child)
+            name = text.strip() if text else ""
         elif tag == "DataType":
-            data_type = text_of(child) or None
+            data_type = (text.strip() or None) if text else None
             dscale = child.get("DScale")
         elif tag == "Comment":
-            comment = text_of(child) or None
+            comment = (text.strip() or None) if text else None
     if index is None:
         raise fail(element, f"PDO entry {name!r} has no <Index>")
     if bit_len is None:
         raise fail(element, f"PDO entry {name!r} has no <BitLen>")
-    return EsiEntry(
-        index=index,
-        subindex=subindex,
-        bit_len=bit_len,
-        name=name,
-        data_type=data_type,
-        comment=comment,
-        dscale=dscale,
-    )
+    return EsiEntry(index, subindex, bit_len, name, data_type, comment, dscale)
 
 
 def parse_pdo(element: Element, direction: PdoDirection) -> EsiPdo:

@@ -234,10 +234,9 @@ class Health:
     def setpoint_problem(
         self, attribute: Attribute[Any, Any], status: Status, message: str
     ) -> None:
-        """The setpoint PVs alone go INVALID with `status` (over any other
-        reason) until `setpoint_fine`."""
+        """The setpoint PVs alone are INVALID with `status` (over any other
+        reason) until `setpoint_fine`; shown by `show_setpoint(_soon)`."""
         self._setpoint[id(attribute)] = Reason(status, message)
-        self._show_setpoint_soon(attribute)
 
     def setpoint_status(self, attribute: Attribute[Any, Any]) -> Status | None:
         """The status of the setpoint's own problem, None without one."""
@@ -246,9 +245,8 @@ class Health:
 
     def setpoint_fine(self, attribute: Attribute[Any, Any]) -> None:
         """The setpoint's own problem is gone: its PVs show the attribute's
-        other reasons, if any."""
-        if self._setpoint.pop(id(attribute), None) is not None:
-            self._show_setpoint_soon(attribute)
+        other reasons, if any (once shown)."""
+        self._setpoint.pop(id(attribute), None)
 
     def setpoint_alarm(self, attribute: Attribute[Any, Any]) -> AlarmState:
         """What the setpoint PVs show now."""
@@ -263,9 +261,10 @@ class Health:
         it completes for the client: see `fastcs_adapter.watch_ca_puts`)."""
         self._publish_state(attribute, self.setpoint_alarm(attribute), Parts.SETPOINT)
 
-    def _show_setpoint_soon(self, attribute: Attribute[Any, Any]) -> None:
-        """Once the put under way has been answered: FastCS's PVA handler
-        posts its own alarm (MAJOR) after the put fails, and ours goes after."""
+    def show_setpoint_soon(self, attribute: Attribute[Any, Any]) -> None:
+        """`show_setpoint` once the put under way has been answered: FastCS's
+        PVA handler posts its own alarm (MAJOR) after the put fails, and ours
+        goes after."""
         asyncio.get_running_loop().call_soon(self.show_setpoint, attribute)
 
     async def _drop(self, attribute: Attribute[Any, Any], gone: Iterable[str]) -> None:

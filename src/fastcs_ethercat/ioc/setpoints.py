@@ -42,7 +42,13 @@ WAITING: Final = "waiting for the value the PLC holds"
 
 
 class Setpoints:
-    """The setpoints of one master's outputs."""
+    """The setpoints of one master's outputs.
+
+    What a setpoint shows is decided at once, before its value is shown
+    (FastCS's setpoint callbacks are awaited): a resync's `follow` or a
+    readback that lands meanwhile sees the decision, so a refused write
+    stays refused; its alarm is shown after the value.
+    """
 
     def __init__(self, health: Health) -> None:
         self.health = health
@@ -58,28 +64,41 @@ class Setpoints:
                 continue  # held until a later write succeeds
             if status is not Status.TIMEOUT:
                 self.health.setpoint_problem(attribute, Status.UDF, WAITING)
+                self.health.show_setpoint_soon(attribute)
             self.health.watch_value(attribute, self._from_plc)
 
     async def _from_plc(self, attribute: AttrR[Any, Any], value: Any) -> None:
-        await fastcs_adapter.sync_setpoint(attribute, value)
-        self.health.setpoint_fine(attribute)
+        await self._show(attribute, value)
 
     async def written(self, attribute: AttrR[Any, Any], value: Any) -> None:
         """The PLC took `value`."""
         self.health.unwatch_value(attribute)
-        await fastcs_adapter.sync_setpoint(attribute, value)
-        self.health.setpoint_fine(attribute)
+        await self._show(attribute, value)
 
     async def failed(self, attribute: AttrR[Any, Any], value: Any, why: str) -> None:
         """`value` did not reach the PLC."""
         self.health.unwatch_value(attribute)
-        await fastcs_adapter.sync_setpoint(attribute, value)
-        self.health.setpoint_problem(attribute, Status.WRITE, why)
+        await self._show(attribute, value, Status.WRITE, why)
 
     async def unknown(self, attribute: AttrR[Any, Any], value: Any, why: str) -> None:
         """A write of `value` whose outcome is unknown (neither it nor a read
         back was answered): INVALID/TIMEOUT until the next readback, which
         the setpoint then takes over."""
-        await fastcs_adapter.sync_setpoint(attribute, value)
-        self.health.setpoint_problem(attribute, Status.TIMEOUT, why)
         self.health.watch_value(attribute, self._from_plc)
+        await self._show(attribute, value, Status.TIMEOUT, why)
+
+    async def _show(
+        self,
+        attribute: AttrR[Any, Any],
+        value: Any,
+        problem: Status | None = None,
+        why: str = "",
+    ) -> None:
+        """Decide now (`problem`, or none), then show `value` on both
+        setpoints, then their alarm (showing the value clears it on PVA)."""
+        if problem is None:
+            self.health.setpoint_fine(attribute)
+        else:
+            self.health.setpoint_problem(attribute, problem, why)
+        await fastcs_adapter.sync_setpoint(attribute, value)
+        self.health.show_setpoint_soon(attribute)
