@@ -10,7 +10,6 @@ device's symbols (port 27904 + id) are then resolved into points by
 
 from __future__ import annotations
 
-import asyncio
 import logging
 from dataclasses import dataclass
 
@@ -44,6 +43,7 @@ from fastcs_ethercat.ioc.clients import ClientFactory, read_text
 from fastcs_ethercat.ioc.config import IocConfig
 from fastcs_ethercat.ioc.plan import MasterPlan, SlaveInfo, SystemPlan
 from fastcs_ethercat.ioc.resolve import resolve_master
+from fastcs_ethercat.ioc.tasks import gather_at_most
 from fastcs_ethercat.terminals.registry import TerminalRegistry
 
 logger = logging.getLogger(__name__)
@@ -112,14 +112,10 @@ async def read_slaves(
     states = decode_slave_states(
         await master.read(EtherCatMasterGroup.SLAVE_STATES, 0, 2 * count)
     )
-    window = asyncio.Semaphore(READS_IN_FLIGHT)
-
-    async def describe(position: int, address: int) -> _Described:
-        async with window:
-            return await _describe_slave(master, position, address)
-
-    described = await asyncio.gather(
-        *(describe(position, address) for position, address in enumerate(addresses))
+    described = await gather_at_most(
+        READS_IN_FLIGHT,
+        lambda slave: _describe_slave(master, *slave),
+        enumerate(addresses),
     )
     slaves: list[SlaveInfo] = []
     coupler: str | None = None

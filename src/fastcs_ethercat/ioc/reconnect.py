@@ -30,13 +30,12 @@ from fastcs_ethercat.ioc.discovery import discover, read_symbol_version
 from fastcs_ethercat.ioc.health import COMM, Health
 from fastcs_ethercat.ioc.plan import SystemPlan
 from fastcs_ethercat.ioc.supervisor import LinkState, Probe, Supervisor
+from fastcs_ethercat.ioc.tasks import cancel_and_wait, gather_at_most
 from fastcs_ethercat.terminals.loader import load_terminals
 from fastcs_ethercat.terminals.registry import TerminalRegistry
 
 logger = logging.getLogger(__name__)
 
-CANCEL_AGAIN_S: Final = 0.1
-"""How long a cancelled task may take before it is cancelled again."""
 COE_REFRESH_WAIT_S: Final = 10.0
 """How long CoE values wait after a resync for the link to count as up."""
 COE_SLAVES_AT_ONCE: Final = 8
@@ -235,15 +234,9 @@ class Reconnection:
                 return
             await asyncio.sleep(0.02)
         # A slave's mailbox takes one SDO at a time; several slaves at once.
-        slots = asyncio.Semaphore(COE_SLAVES_AT_ONCE)
-
-        async def refresh(terminal: CoeTerminal) -> None:
-            async with slots:
-                await terminal.refresh_coe()
-
         terminals = [t for t in self.root.terminals() if t.coe_attributes]
         started = time.monotonic()
-        await asyncio.gather(*(refresh(t) for t in terminals))
+        await gather_at_most(COE_SLAVES_AT_ONCE, lambda t: t.refresh_coe(), terminals)
         if terminals:
             logger.info(
                 "CoE values of %d terminals read in %.1f s",
@@ -292,18 +285,3 @@ def _point_keys(plan: SystemPlan, slaves: Collection[tuple[str, int]]) -> set[st
             if (master.name, terminal.slave.address) in slaves:
                 keys.update(p.key for p in terminal.points)
     return keys
-
-
-async def cancel_and_wait(tasks: Collection[asyncio.Task[Any]]) -> None:
-    """Cancel `tasks` and wait until every one has ended.
-
-    Python 3.11's `asyncio.wait_for` returns its result and drops the
-    cancellation when the task is cancelled just as the awaited thing
-    finishes (the supervisor's probe and wake-up wait): a task still running
-    is cancelled again, else a SIGTERM shortly after start could leave the
-    IOC running."""
-    pending = set(tasks)
-    while pending:
-        for task in pending:
-            task.cancel()
-        _, pending = await asyncio.wait(pending, timeout=CANCEL_AGAIN_S)

@@ -79,6 +79,7 @@ from fastcs_ethercat.ioc.plan import MasterPlan, Point, TerminalPlan
 from fastcs_ethercat.ioc.poller import Poller, PollStats, pack_write
 from fastcs_ethercat.ioc.setpoints import Setpoints
 from fastcs_ethercat.ioc.supervisor import LinkState
+from fastcs_ethercat.ioc.tasks import cancel_and_wait
 
 logger = logging.getLogger(__name__)
 
@@ -376,9 +377,7 @@ class MasterController(Controller):
             if group.poller is not None:
                 group.poller.stop()
         tasks, self._tasks = self._tasks, []
-        for task in tasks:
-            task.cancel()
-        await asyncio.gather(*tasks, return_exceptions=True)
+        await cancel_and_wait(tasks)
         old, self.handles = self.handles.all(), PointHandles()
         self._generation += 1
         if (
