@@ -103,16 +103,20 @@ def test_field_checks_raise_the_library_errors_and_accept_repeats() -> None:
 
 
 def test_lean_imports_leave_shell_gui_and_setuptools_for_later() -> None:
-    """IPython, pvi, setuptools and prompt_toolkit are not imported at start;
-    what FastCS took from them imports them when called, and they import as
-    usual."""
+    """IPython, pvi, setuptools, prompt_toolkit and ruamel.yaml (FastCS's
+    YAML launcher) are not imported at start; what FastCS took from them
+    imports them when called, and they import as usual."""
     out = _run(
         """
         import sys
         from fastcs_ethercat.ioc.fastcs_adapter import import_ioc_modules
         import_ioc_modules()
-        unused = ("IPython", "pvi", "setuptools", "prompt_toolkit")
+        unused = ("IPython", "pvi", "setuptools", "prompt_toolkit", "ruamel")
         print(*(name in sys.modules for name in unused))
+        import fastcs
+        launch = fastcs.launch
+        from fastcs.launch import launch as real_launch
+        print(launch.__name__, real_launch.__module__, "ruamel" in sys.modules)
         from fastcs.logging import _logging
         proxy = _logging.StdoutProxy(raw=True)
         print(type(proxy).__module__)
@@ -128,7 +132,8 @@ def test_lean_imports_leave_shell_gui_and_setuptools_for_later() -> None:
         """
     )
     assert out.splitlines() == [
-        "False False False False",
+        "False False False False False",
+        "launch fastcs.launch True",
         "prompt_toolkit.patch_stdout",
         "fastcs.transports.epics.gui True",
         "True True",

@@ -1098,6 +1098,7 @@ def _caller_package() -> str:
 
 _DEFERRED: Final = {
     "IPython.terminal.embed": ("InteractiveShellEmbed",),
+    "fastcs.launch": ("launch",),
     "fastcs.transports.epics.emission": ("emit_docs_files", "emit_gui_files"),
     "fastcs.transports.epics.gui": ("EpicsGUI",),
     "fastcs.transports.epics.pva.gui": ("PvaEpicsGUI",),
@@ -1106,8 +1107,9 @@ _DEFERRED: Final = {
 """Modules FastCS imports at start only to define names an IOC without an
 interactive shell or GUI files never calls (IPython, pvi; prompt_toolkit,
 0.1 s, for `fastcs.logging.configure_logging`, which this IOC does not call:
-`logs.py` routes FastCS's log): stood in for by names that import the real
-module when first called."""
+`logs.py` routes FastCS's log; ruamel.yaml, 30 modules, for FastCS's own
+YAML launcher, where `launch.py` builds the transports itself): stood in for
+by names that import the real module when first called."""
 _DSO_PACKAGE: Final = "setuptools_dso"
 _DSO_RUNTIME: Final = "setuptools_dso.runtime"
 _DSO_NAMES: Final = ("find_dso", "dylink_prepare_dso")
