@@ -26,6 +26,7 @@ from fastcs_ethercat.cli.options import (
 )
 from fastcs_ethercat.cli.sim import sim_command
 from fastcs_ethercat.errors import UserError
+from fastcs_ethercat.generated_code import cache_generated_code
 from fastcs_ethercat.logs import setup_logging
 
 if TYPE_CHECKING:  # Typer vendors Click; its groups' methods take these types
@@ -103,4 +104,5 @@ def run_cli(command: typer.Typer, prog_name: str | None = None) -> None:
 
 def app() -> None:
     """The `fastcs-ethercat` entry point."""
+    cache_generated_code()
     run_cli(_typer_app, "fastcs-ethercat")
