@@ -14,7 +14,8 @@ compiled anew is written back at exit, or by `settle_generated_code()` (the
 IOC, once it serves), which also gives the modules their builtins back. A
 code object is what the builtin compiles from the same text with the same
 flags, so every class is the one it would have been; a damaged or foreign
-file only costs the compiles again.
+file only costs the compiles again. The file is trusted as the user's own,
+like the terminal-YAML cache beside it.
 
 No `from __future__ import annotations` here: a builtin called from this
 module inherits its future flags, and the modules it stands in for have none.
