@@ -4,7 +4,7 @@ Creating a class compiles source text the standard library writes for it:
 `@dataclass` its `__init__`, `__repr__`, `__eq__`, ... (one `exec` each),
 `NamedTuple` its `__new__` (`eval`), and every string annotation that
 `typing` resolves its `ForwardRef` (`compile`). The IOC's start creates ~200
-dataclasses of its own, FastCS's and pydantic's: about 1 900 compiles of the
+dataclasses of its own, FastCS's and pydantic's: about 2 000 compiles of the
 same text at every start, a tenth of the CPU before it talks to the PLC.
 
 `cache_generated_code()` gives those three modules an `exec`, `eval` and
