@@ -6,6 +6,7 @@ from __future__ import annotations
 import builtins
 import collections
 import dataclasses
+import sys
 import typing
 from collections.abc import Iterator
 from pathlib import Path
@@ -14,6 +15,7 @@ from typing import NamedTuple
 import pytest
 
 from fastcs_ethercat import generated_code
+from fastcs_ethercat.cli import app
 from fastcs_ethercat.generated_code import cache_generated_code, settle_generated_code
 
 _MODULES = (dataclasses, collections, typing)
@@ -22,6 +24,7 @@ _MODULES = (dataclasses, collections, typing)
 @pytest.fixture
 def cache_file(tmp_path: Path) -> Iterator[Path]:
     path = tmp_path / "code" / "cache.marshal"
+    settle_generated_code()  # whatever another test left installed
     yield path
     settle_generated_code()
 
@@ -151,3 +154,17 @@ def test_compile_calls_other_than_anonymous_text_pass_through(
 
 def _stand_ins() -> list[tuple[object, str]]:
     return [(dataclasses, "exec"), (collections, "eval"), (typing, "compile")]
+
+
+def test_a_command_leaves_the_modules_as_it_found_them(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The entry point settles when its command returns: a test (or a
+    caller) running commands in one process keeps plain builtins."""
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    monkeypatch.setattr(sys, "argv", ["fastcs-ethercat", "--version"])
+    with pytest.raises(SystemExit):
+        app()
+
+    assert "fastcs-ethercat" in capsys.readouterr().out
+    assert not any(name in module.__dict__ for module, name in _stand_ins())

@@ -9,9 +9,10 @@ same text at every start, a tenth of the CPU before it talks to the PLC.
 
 `cache_generated_code()` gives those three modules an `exec`, `eval` and
 `compile` that first look the code up by its text, in a file of the cache
-directory (`cache_dir`, one per interpreter bytecode version); what is
-compiled anew is written back at exit, or by `settle_generated_code()` (the
-IOC, once it serves), which also gives the modules their builtins back. A
+directory (`cache_dir`, one per interpreter bytecode version), until
+`settle_generated_code()` writes back what was compiled anew and gives the
+modules their builtins back: the CLI's entry point when its command returns,
+the IOC as soon as it serves. A
 code object is what the builtin compiles from the same text with the same
 flags, so every class is the one it would have been; a damaged or foreign
 file only costs the compiles again. The file is trusted as the user's own,
@@ -21,7 +22,6 @@ No `from __future__ import annotations` here: a builtin called from this
 module inherits its future flags, and the modules it stands in for have none.
 """
 
-import atexit
 import builtins
 import collections
 import dataclasses
@@ -154,7 +154,6 @@ def cache_generated_code(path: Path | None = None) -> None:
             stand_in = _compile(cache) if name == "compile" else _run(cache, name)
             setattr(module, name, stand_in)
             _stood_in.append((module, name))
-    atexit.register(settle_generated_code)
 
 
 def settle_generated_code() -> None:
