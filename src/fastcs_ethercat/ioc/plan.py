@@ -14,6 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from enum import Enum
 
+from fastcs_ethercat.ads.ethercat import SlaveIdentity
 from fastcs_ethercat.terminals.meaning import Scaling
 
 
@@ -107,10 +108,7 @@ class SlaveInfo:
 
     address: int  # EtherCAT address, 1001, 1002, ...
     name: str  # TwinCAT name, "Term 5 (EL3104)"
-    vendor_id: int
-    product_code: int
-    revision: int
-    serial: int = 0
+    identity: SlaveIdentity  # vendor, product code, revision, serial (0x1018)
     coupler: str | None = None  # TwinCAT name of the coupler it hangs off
     position: int = 0  # bus order, 0-based
     type_name: str = ""  # TwinCAT's type of the slave (master CoE 0x8000+n:02)

@@ -304,14 +304,17 @@ def resolve_terminal(
     """One slave's plan: matched YAML (or generic) and its points."""
     if views is None:
         views = TypeViews()
-    match = registry.lookup(slave.product_code, slave.revision, slave.vendor_id)
+    identity = slave.identity
+    match = registry.lookup(
+        identity.product_code, identity.revision, identity.vendor_id
+    )
     if match is None:
         plan = TerminalPlan(slave=slave, terminal_type=None)
         plan.points = generic_points(master, entries, types, slave.type_name)
         if entries:
             plan.warnings.append(
                 f"{slave.name}: no terminal YAML for product code "
-                f"0x{slave.product_code:08x} revision 0x{slave.revision:08x}; "
+                f"0x{identity.product_code:08x} revision 0x{identity.revision:08x}; "
                 f"serving its {len(entries)} live symbols read-only"
             )
         return plan
@@ -364,7 +367,7 @@ def _match_warning(
     text = f"{slave.name}: "
     if not match.exact:
         text += (
-            f"revision 0x{slave.revision:08x} has no YAML; served from "
+            f"revision 0x{slave.identity.revision:08x} has no YAML; served from "
             f"{match.type_name} revision 0x{match.revision:08x}"
         )
     if dropped:
