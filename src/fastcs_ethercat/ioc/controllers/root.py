@@ -20,7 +20,7 @@ import logging
 import time
 from collections.abc import Callable, Collection, Sequence
 from dataclasses import dataclass
-from typing import Any, Final
+from typing import Any, Final, NamedTuple
 
 from fastcs.attributes import AttrR
 from fastcs.controllers import Controller
@@ -108,28 +108,35 @@ ROOT_LEAVES: Final = (
 )
 
 
+class Totals(NamedTuple):
+    """The pollers' poll cycles and ADS requests and the publisher's posts
+    so far, at one moment (time.monotonic())."""
+
+    time: float
+    cycles: int
+    requests: int
+    posts: int
+
+
 @dataclass
 class RateTracker:
-    """Turns the pollers' running totals into per-second rates."""
+    """Turns the running totals into per-second rates."""
 
-    last_time: float = 0.0
-    last_cycles: int = 0
-    last_requests: int = 0
-    last_posts: int = 0
+    last: Totals | None = None
     cycles_per_second: float = 0.0
     requests_per_second: float = 0.0
     posts_per_second: float = 0.0
 
-    def update(self, now: float, cycles: int, requests: int, posts: int = 0) -> None:
-        elapsed = now - self.last_time
-        restarted = cycles < self.last_cycles or requests < self.last_requests
-        if self.last_time and elapsed > 0 and not restarted:  # new pollers: skip
-            self.cycles_per_second = (cycles - self.last_cycles) / elapsed
-            self.requests_per_second = (requests - self.last_requests) / elapsed
-        if self.last_time and elapsed > 0:
-            self.posts_per_second = (posts - self.last_posts) / elapsed
-        self.last_time, self.last_cycles, self.last_requests = now, cycles, requests
-        self.last_posts = posts
+    def update(self, now: Totals) -> None:
+        last, self.last = self.last, now
+        if last is None or now.time <= last.time:
+            return
+        elapsed = now.time - last.time
+        restarted = now.cycles < last.cycles or now.requests < last.requests
+        if not restarted:  # new pollers (a reconnect): skip
+            self.cycles_per_second = (now.cycles - last.cycles) / elapsed
+            self.requests_per_second = (now.requests - last.requests) / elapsed
+        self.posts_per_second = (now.posts - last.posts) / elapsed
 
 
 class RootController(Controller):
@@ -357,10 +364,12 @@ class RootController(Controller):
     async def _post_stats(self) -> None:
         stats = [s for master in self.masters for s in master.poll_stats()]
         self.rates.update(
-            time.monotonic(),
-            sum(s.cycles for s in stats),
-            sum(s.requests for s in stats),
-            self.health.publisher.posted,
+            Totals(
+                time.monotonic(),
+                sum(s.cycles for s in stats),
+                sum(s.requests for s in stats),
+                self.health.publisher.posted,
+            )
         )
         link = self.reconnection.supervisor.stats
         connected = self.reconnection.connection.connected
