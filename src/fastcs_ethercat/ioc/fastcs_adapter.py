@@ -50,6 +50,10 @@ anywhere else.
   `pva_transport` builds the PVA PVs meanwhile, once EPICS's init hook says
   every record's device support has initialised; `ca_initialised()` is
   awaited before anything touches the records or says the IOC serves.
+  The in records of numbers are not processed at init (PINI): softioc's
+  processing runs Python per record after the sleep, in iocInit's thread,
+  waiting for the GIL the PVA build holds; `_write_initial_values` gives
+  them the same value, time and alarm directly during the sleep.
 - **Type hints once per controller class.** FastCS resolves a controller
   class's type hints twice for every instance; `install_type_hint_memo`
   resolves them once per class.
@@ -400,6 +404,7 @@ class CycleWrites:
     """
 
     def __init__(self, stamp: float) -> None:
+        self.stamp = stamp
         seconds = int(stamp)
         self.packed_time = (seconds - _EPICS_EPOCH) | (
             int((stamp - seconds) * 1e9) << 32
@@ -541,6 +546,50 @@ class _InRecord:
         self.new_severity.value = severity
         self.new_status.value = status
         return _database_functions().reset_alarms(self.address)
+
+
+# -- initial values without processing ------------------------------------------
+
+
+def _direct_in_records() -> list[Any]:
+    """softioc's in records whose value is one number (`_InRecord`'s kind)."""
+    from softioc.device import ProcessDeviceSupportIn
+    from softioc.device_core import LookupRecordList
+
+    return [
+        device
+        for _, device in LookupRecordList()
+        if isinstance(device, ProcessDeviceSupportIn)
+        and getattr(device, "_ctype_", None) in _DIRECT_VALUE_TYPES
+    ]
+
+
+def _skip_initial_processing(devices: Iterable[Any]) -> None:
+    """No PINI for these records (before iocInit): `_write_initial_values`
+    gives them what processing would, without Python per record."""
+    from epicsdbbuilder import LookupRecord
+
+    for device in devices:
+        LookupRecord(device._name).PINI = "NO"
+
+
+def _write_initial_values(devices: Iterable[Any]) -> int:
+    """What PINI processing gives an in record, written directly: its value,
+    UDF, the time now and its staged alarm (NO_ALARM unless set), all under
+    one lock. softioc's processing calls Python for every record, in
+    iocInit's thread after EPICS's sleep, where it waits for the GIL that
+    the PVA build holds; this runs on the event loop during the sleep.
+    Returns how many were written."""
+    writes = CycleWrites(time.time())
+    for device in devices:
+        record = _InRecord.of(device, None)
+        if record is None:  # no record fields: not initialised by EPICS
+            continue
+        value, severity, status = device._value[:3]
+        writes.add(record, Update(value.value, writes.stamp, severity, status))
+    written = len(writes.records)
+    writes.flush()
+    return written
 
 
 _READ_PV: Final = "_fastcs_ethercat_read_pv"
@@ -937,11 +986,23 @@ def ca_transport(aliases: Mapping[str, str]) -> Transport:
     from fastcs.transports.epics.ca.transport import EpicsCATransport
 
     class ThreadedInitCATransport(EpicsCATransport):
+        direct: tuple[Any, ...] = ()
+        """Its in records initialised by `_write_initial_values`."""
+
+        def connect(
+            self, controller_apis: list[Any], loop: asyncio.AbstractEventLoop
+        ) -> None:
+            super().connect(controller_apis, loop)
+            self.direct = tuple(_direct_in_records())
+            _skip_initial_processing(self.direct)
+
         async def serve(self) -> None:
             global _ca_initialised, _ca_records_initialised
             loop = asyncio.get_running_loop()
             _ca_initialised = done = loop.create_future()
             _ca_records_initialised = records = loop.create_future()
+            # first in line: before the PVA build that waits for it too
+            records.add_done_callback(lambda _: _write_initial_values(self.direct))
             if not _init_hooks:
                 _announce_records_initialised(loop)
             try:
