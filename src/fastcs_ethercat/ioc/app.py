@@ -67,7 +67,14 @@ def serve(
         access_security_file=config.access_security_file,
         read_only=config.read_only,
     )
-    run(root, config.prefix, options, on_ready=ready, on_built=built)
+    run(
+        root,
+        config.prefix,
+        options,
+        on_ready=ready,
+        on_built=built,
+        on_pvs_built=root.prepare,
+    )
 
 
 def write_lists(root: RootController, config: IocConfig) -> None:

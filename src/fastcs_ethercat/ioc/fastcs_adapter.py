@@ -936,6 +936,8 @@ _ca_initialised: asyncio.Future[None] | None = None
 """Done once this process's iocInit has returned (softioc inits once)."""
 _ca_records_initialised: asyncio.Future[None] | None = None
 """Done once iocInit has initialised every record (its Python part)."""
+_pva_built: asyncio.Future[None] | None = None
+"""Done once the PVA transport has made its PVs (or failed to)."""
 _HOOK_RECORDS_DONE: Final = b"initHookAfterFinishDevSup"
 """The init hook announced after every record's device support has
 initialised, just before iocBuild's fixed sleep."""
@@ -1026,12 +1028,39 @@ def pva_transport() -> Transport:
     from fastcs.transports.epics.pva.transport import EpicsPVATransport
 
     class AfterCaRecordsPVATransport(EpicsPVATransport):
+        def connect(
+            self, controller_apis: list[Any], loop: asyncio.AbstractEventLoop
+        ) -> None:
+            global _pva_built
+            super().connect(controller_apis, loop)
+            _pva_built = built = loop.create_future()
+            ioc: Any = self._ioc  # pyright: ignore[reportPrivateUsage]
+            build = ioc._build_providers
+
+            async def build_providers() -> Any:
+                try:
+                    return await build()
+                finally:
+                    _resolve(built)
+
+            ioc._build_providers = build_providers
+
         async def serve(self) -> None:
             if _ca_records_initialised is not None:
                 await asyncio.shield(_ca_records_initialised)
             await super().serve()
 
     return AfterCaRecordsPVATransport()
+
+
+async def pvs_built() -> None:
+    """Once the CA records are initialised and the PVA PVs made, while
+    iocInit may still sleep (see `ca_transport`): where each value will go is
+    known, nothing serves yet. Call from a transport's `serve`, which starts
+    after the CA and PVA ones'."""
+    for future in (_ca_records_initialised, _pva_built):
+        if future is not None:
+            await asyncio.shield(future)
 
 
 async def ca_initialised() -> None:
@@ -1304,6 +1333,12 @@ def shape_problems() -> list[str]:
     names = parse.__code__.co_names if isinstance(parse, types.FunctionType) else ()
     if "make_shared_read_pv" not in names:
         problems.append(f"fastcs: {_PVA_IOC_MODULE} makes its read PVs another way")
+    pva_ioc: Any = getattr(importlib.import_module(_PVA_IOC_MODULE), "P4PIOC", None)
+    run = getattr(pva_ioc, "run", None)
+    if not isinstance(run, types.FunctionType) or (
+        "_build_providers" not in run.__code__.co_names
+    ):
+        problems.append("fastcs: P4PIOC.run no longer builds by _build_providers")
     from fastcs.attributes import AttrR, AttrRW, AttrW
     from fastcs.datatypes import Int
 

@@ -27,7 +27,7 @@ from fastcs.controllers import Controller
 from fastcs.datatypes import Int, String
 from fastcs.methods import scan
 
-from fastcs_ethercat import __version__
+from fastcs_ethercat import __version__, collector
 from fastcs_ethercat.ioc.alarms import Status
 from fastcs_ethercat.ioc.boot import PlanSource
 from fastcs_ethercat.ioc.chains import remember
@@ -182,6 +182,7 @@ class RootController(Controller):
             return
         plan, connection = await self.plan_source()
         started = time.monotonic()
+        collector.pause()  # a burst of objects that live on, until `start`
         self.build(plan, connection)
         logger.info(
             "%d PVs planned in %.1f s; creating their records",
@@ -300,6 +301,15 @@ class RootController(Controller):
         return list(dict.fromkeys(found))
 
     # -- serving -------------------------------------------------------------------
+
+    async def prepare(self) -> None:
+        """Every PV exists, none serves yet (EPICS's iocInit sleeps): where
+        each value from the target will go is worked out now, not at its
+        first poll. Never raises: what fails here is done at the first value."""
+        try:
+            self.health.publisher.prepare(self.target_attributes())
+        except Exception:
+            logger.debug("routes not prepared", exc_info=True)
 
     def start(self) -> None:
         """The transports serve: poll, supervise, read the CoE values.
