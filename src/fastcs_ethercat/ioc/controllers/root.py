@@ -41,6 +41,7 @@ from fastcs_ethercat.ioc.controllers.tree import (
     build_masters,
     pv_entries,
     pv_requests,
+    requests_by_terminal,
     slave_path,
 )
 from fastcs_ethercat.ioc.datatypes import AlarmBool, ExactFloat, alarm_enum
@@ -204,8 +205,11 @@ class RootController(Controller):
         """The attributes of the root and every controller below, for `plan`."""
         config = self.config
         self._plan = plan
+        by_terminal = requests_by_terminal(plan)
         self._names = names = plan_pv_names(
-            config.prefix, pv_requests(plan, ROOT_LEAVES), config.pv_aliases
+            config.prefix,
+            pv_requests(plan, ROOT_LEAVES, by_terminal),
+            config.pv_aliases,
         )
         for shortening in names.shortened:  # thousands with every CoE object
             logger.debug("PV name shortened: %s", shortening)
@@ -213,7 +217,13 @@ class RootController(Controller):
         for leaf, attr in self.attrs.items():
             self.add_attribute(names.leaves[PvRequest((), leaf)], attr)
         self.masters = build_masters(
-            self, plan, names, connection, self.health, read_only=config.read_only
+            self,
+            plan,
+            names,
+            connection,
+            self.health,
+            read_only=config.read_only,
+            by_terminal=by_terminal,
         )
         self._reconnection = Reconnection(self, connection, plan, self.registry)
         self.use_plan(plan)
