@@ -39,6 +39,8 @@ anywhere else.
   `_in_record_setter` stores the value as `set()` does and queues the same
   request through a `PyDLL` binding that keeps the GIL (scanIoRequest only
   appends to a queue), so a cycle costs a third of the CPU per value.
+- **Field values quoted at C speed.** `install_quick_quoting`: a value with
+  nothing to escape is quoted without epicsdbbuilder's call per character.
 - **Record field checks once per (field, value).** epicsdbbuilder checks every
   field of every record (~0.3 ms a record, seconds for a rack);
   `install_field_memo` replaces `ValidateDbField.ValidFieldValue` with one
@@ -79,6 +81,7 @@ import importlib.abc
 import importlib.metadata
 import importlib.util
 import inspect
+import re
 import sys
 import time
 import types
@@ -1123,6 +1126,32 @@ def install_field_memo() -> None:
     ValidateDbField.ValidFieldValue = valid_field_value
 
 
+_QUOTED: Final = re.compile(r'[\x00-\x1f"\\]')
+"""The characters epicsdbbuilder's `quote_char` escapes."""
+
+
+@functools.cache
+def install_quick_quoting() -> None:
+    """Quote a field value for the .db file without a Python call per
+    character (idempotent).
+
+    epicsdbbuilder's `quote_string` maps `quote_char` over every character
+    of every field of every record: 40 % of writing the database. A value
+    with nothing to escape (almost all) is quoted as it is; any other goes
+    through the library's own function, so the text is the same.
+    """
+    from epicsdbbuilder import recordbase
+
+    library: Callable[[str], str] = recordbase.quote_string
+
+    def quote_string(value: str) -> str:
+        if _QUOTED.search(value) is None:
+            return '"' + value + '"'
+        return library(value)
+
+    recordbase.quote_string = quote_string
+
+
 # -- controllers ---------------------------------------------------------------
 
 
@@ -1458,6 +1487,14 @@ def _epicsdbbuilder_problems() -> list[str]:
         problems.append("epicsdbbuilder: ValidateDbField.ValidFieldValue is gone")
     if not callable(getattr(dbd, "DBEntry", None)):
         problems.append("epicsdbbuilder: dbd.DBEntry is gone")
+    from epicsdbbuilder import recordbase
+
+    formats = getattr(recordbase.Record, "_Record__FormatFieldForDb", None)
+    if not callable(getattr(recordbase, "quote_string", None)) or not (
+        isinstance(formats, types.FunctionType)
+        and "quote_string" in formats.__code__.co_names
+    ):
+        problems.append("epicsdbbuilder: records are no longer quoted by quote_string")
     return problems
 
 
