@@ -61,6 +61,12 @@ def serve(
 
             write_screens(root, config.screens_dir, ca=config.transports.ca)
 
+    async def prepare() -> None:
+        from fastcs_ethercat.ioc.fastcs_adapter import ca_still_initialising
+
+        idle = ca_still_initialising if config.transports.ca else lambda: True
+        await root.prepare(idle)
+
     options = LaunchOptions(
         ca=config.transports.ca,
         pva=config.transports.pva,
@@ -73,7 +79,7 @@ def serve(
         options,
         on_ready=ready,
         on_built=built,
-        on_pvs_built=root.prepare,
+        on_pvs_built=prepare,
     )
 
 

@@ -358,10 +358,11 @@ class ValueRoute:
             self._pva = read_pv.post if read_pv else _pva_poster(pv.post, attribute)
         device = self.endpoints.ca_in
         if device is not None:
-            _use_device_time(device)
             self._in_record = _InRecord.of(device, attribute.datatype)
             if self._in_record is None:  # text, arrays: softioc processes them
                 self._set_ca = _in_record_setter(device)
+            else:
+                _use_device_time(device)
 
     def post(self, update: Update, writes: CycleWrites) -> Awaitable[None] | None:
         """What `attribute.update(update)` will do: value, posts, setpoint."""
@@ -777,8 +778,13 @@ def _in_record_setter(device: Any) -> Callable[[Any, Update], None]:
     queues its processing without releasing the GIL (see the top)."""
     to_epics = device._value_to_epics
     request = _scan_io_request_keeping_gil()
+    on_device_time = False
 
     def set_value(value: Any, update: Update) -> None:
+        nonlocal on_device_time
+        if not on_device_time:  # at the first value: its PINI is done by then
+            _use_device_time(device)
+            on_device_time = True
         device._value = (
             to_epics(value),
             update.severity,
@@ -1073,6 +1079,12 @@ async def ca_initialised() -> None:
     call from a transport's `serve`, which starts after the CA one's."""
     if _ca_initialised is not None:
         await asyncio.shield(_ca_initialised)
+
+
+def ca_still_initialising() -> bool:
+    """Whether iocInit is still running (in EPICS's sleep, once `pvs_built`):
+    work done on the loop now delays nothing."""
+    return _ca_initialised is not None and not _ca_initialised.done()
 
 
 # -- epicsdbbuilder ------------------------------------------------------------

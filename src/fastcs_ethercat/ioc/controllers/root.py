@@ -16,6 +16,7 @@ its scan.
 
 from __future__ import annotations
 
+import asyncio
 import logging
 import time
 from collections.abc import Callable, Collection, Sequence
@@ -65,6 +66,8 @@ from fastcs_ethercat.terminals.registry import TerminalRegistry
 logger = logging.getLogger(__name__)
 
 STATS_PERIOD_S: Final = 1.0
+PREPARED_AT_ONCE: Final = 200
+"""Routes made between two looks at whether EPICS still sleeps (~10 ms)."""
 WARNINGS_SHOWN: Final = 15
 """Start-up warnings logged before one line says how many more there are."""
 PROCESS_LEAVES: Final = (
@@ -312,14 +315,25 @@ class RootController(Controller):
 
     # -- serving -------------------------------------------------------------------
 
-    async def prepare(self) -> None:
+    async def prepare(self, idle: Callable[[], bool]) -> None:
         """Every PV exists, none serves yet (EPICS's iocInit sleeps): where
         each value from the target will go is worked out now, not at its
-        first poll. Never raises: what fails here is done at the first value."""
-        try:
-            self.health.publisher.prepare(self.target_attributes())
-        except Exception:
-            logger.debug("routes not prepared", exc_info=True)
+        first poll, a slice at a time while `idle()` (what is left is done at
+        the first values, as the IOC must serve as soon as EPICS does).
+        Never raises: what fails here is done at the first value."""
+        attributes = self.target_attributes()
+        for first in range(0, len(attributes), PREPARED_AT_ONCE):
+            if not idle():
+                logger.debug("routes prepared: %d of %d", first, len(attributes))
+                return
+            try:
+                self.health.publisher.prepare(
+                    attributes[first : first + PREPARED_AT_ONCE]
+                )
+            except Exception:
+                logger.debug("routes not prepared", exc_info=True)
+                return
+            await asyncio.sleep(0)  # iocInit may have returned meanwhile
 
     def start(self) -> None:
         """The transports serve: poll, supervise, read the CoE values.
