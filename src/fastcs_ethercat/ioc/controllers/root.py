@@ -16,6 +16,7 @@ its scan.
 
 from __future__ import annotations
 
+import asyncio
 import logging
 import time
 from collections.abc import Callable, Collection, Sequence
@@ -27,7 +28,7 @@ from fastcs.controllers import Controller
 from fastcs.datatypes import Int, String
 from fastcs.methods import scan
 
-from fastcs_ethercat import __version__
+from fastcs_ethercat import __version__, collector
 from fastcs_ethercat.ioc.alarms import Status
 from fastcs_ethercat.ioc.boot import PlanSource
 from fastcs_ethercat.ioc.chains import remember
@@ -41,6 +42,7 @@ from fastcs_ethercat.ioc.controllers.tree import (
     build_masters,
     pv_entries,
     pv_requests,
+    requests_by_terminal,
     slave_path,
 )
 from fastcs_ethercat.ioc.datatypes import AlarmBool, ExactFloat, alarm_enum
@@ -64,6 +66,8 @@ from fastcs_ethercat.terminals.registry import TerminalRegistry
 logger = logging.getLogger(__name__)
 
 STATS_PERIOD_S: Final = 1.0
+PREPARED_AT_ONCE: Final = 200
+"""Routes made between two looks at whether EPICS still sleeps (~10 ms)."""
 WARNINGS_SHOWN: Final = 15
 """Start-up warnings logged before one line says how many more there are."""
 PROCESS_LEAVES: Final = (
@@ -189,6 +193,7 @@ class RootController(Controller):
             return
         plan, connection = await self.plan_source()
         started = time.monotonic()
+        collector.pause()  # a burst of objects that live on, until `start`
         self.build(plan, connection)
         logger.info(
             "%d PVs planned in %.1f s; creating their records",
@@ -210,8 +215,11 @@ class RootController(Controller):
         """The attributes of the root and every controller below, for `plan`."""
         config = self.config
         self._plan = plan
+        by_terminal = requests_by_terminal(plan)
         self._names = names = plan_pv_names(
-            config.prefix, pv_requests(plan, ROOT_LEAVES), config.pv_aliases
+            config.prefix,
+            pv_requests(plan, ROOT_LEAVES, by_terminal),
+            config.pv_aliases,
         )
         for shortening in names.shortened:  # thousands with every CoE object
             logger.debug("PV name shortened: %s", shortening)
@@ -219,7 +227,13 @@ class RootController(Controller):
         for leaf, attr in self.attrs.items():
             self.add_attribute(names.leaves[PvRequest((), leaf)], attr)
         self.masters = build_masters(
-            self, plan, names, connection, self.health, read_only=config.read_only
+            self,
+            plan,
+            names,
+            connection,
+            self.health,
+            read_only=config.read_only,
+            by_terminal=by_terminal,
         )
         self._reconnection = Reconnection(self, connection, plan, self.registry)
         self.use_plan(plan)
@@ -307,6 +321,26 @@ class RootController(Controller):
         return list(dict.fromkeys(found))
 
     # -- serving -------------------------------------------------------------------
+
+    async def prepare(self, idle: Callable[[], bool]) -> None:
+        """Every PV exists, none serves yet (EPICS's iocInit sleeps): where
+        each value from the target will go is worked out now, not at its
+        first poll, a slice at a time while `idle()` (what is left is done at
+        the first values, as the IOC must serve as soon as EPICS does).
+        Never raises: what fails here is done at the first value."""
+        attributes = self.target_attributes()
+        for first in range(0, len(attributes), PREPARED_AT_ONCE):
+            if not idle():
+                logger.debug("routes prepared: %d of %d", first, len(attributes))
+                return
+            try:
+                self.health.publisher.prepare(
+                    attributes[first : first + PREPARED_AT_ONCE]
+                )
+            except Exception:
+                logger.debug("routes not prepared", exc_info=True)
+                return
+            await asyncio.sleep(0)  # iocInit may have returned meanwhile
 
     def start(self) -> None:
         """The transports serve: poll, supervise, read the CoE values.
