@@ -101,6 +101,18 @@ def _dc_op_mode(element: Element) -> EsiDcOpMode:
     )
 
 
+def _dc_op_modes(element: Element, memo: ParseMemo | None) -> tuple[EsiDcOpMode, ...]:
+    """The `OpMode`s of a `<Dc>` (183 in the shared files, 36 distinct)."""
+    if memo is None:
+        return tuple(_dc_op_mode(mode) for mode in element.iterchildren("OpMode"))
+    key = element_key(element)
+    modes = memo.dc_op_modes.get(key)
+    if modes is None:
+        modes = tuple(_dc_op_mode(mode) for mode in element.iterchildren("OpMode"))
+        memo.dc_op_modes[key] = modes
+    return modes
+
+
 def parse_device(
     device: Element, *, vendor_id: int, source: str, memo: ParseMemo | None = None
 ) -> EsiDevice:
@@ -131,7 +143,7 @@ def parse_device(
                 key = element_key(child)
                 pdo = memo.pdos.get(key)
                 if pdo is None:
-                    pdo = memo.pdos[key] = parse_pdo(child, direction)
+                    pdo = memo.pdos[key] = parse_pdo(child, direction, memo, key)
             (tx_pdos if direction == "tx" else rx_pdos).append(pdo)
         elif tag == "Name":
             name_of(child, names)
@@ -154,9 +166,7 @@ def parse_device(
             has_mailbox = True
             has_coe = child.find("CoE") is not None
         elif tag == "Dc":
-            dc_op_modes.extend(
-                _dc_op_mode(mode) for mode in child if mode.tag == "OpMode"
-            )
+            dc_op_modes.extend(_dc_op_modes(child, memo))
         elif tag == "Profile":
             dictionary = child.find("Dictionary")
             if dictionary is not None:

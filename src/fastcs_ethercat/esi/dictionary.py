@@ -16,7 +16,7 @@ from __future__ import annotations
 import re
 from typing import NamedTuple
 
-from .memo import ParseMemo, child_keys, element_key
+from .memo import ParseMemo, child_keys, element_key, shared
 from .model import (
     Access,
     EsiCoeObject,
@@ -24,6 +24,7 @@ from .model import (
     EsiDataType,
     EsiDataTypeSubItem,
     EsiEnumItem,
+    new_record,
 )
 from .xmltext import NUMBERS, Element, EsiFormatError, fail, int_of, text_of
 
@@ -88,8 +89,9 @@ def _data_type_sub_item(element: Element, owner: str) -> EsiDataTypeSubItem:
             access, pdo_mapping, _ = _flags(child)
     if not type_name:
         raise fail(element, f"sub-item {name!r} of data type {owner} has no <Type>")
-    return EsiDataTypeSubItem(
-        subindex, name, type_name, bit_size, bit_offset, access, pdo_mapping
+    return new_record(
+        EsiDataTypeSubItem,
+        (subindex, name, type_name, bit_size, bit_offset, access, pdo_mapping),
     )
 
 
@@ -156,15 +158,12 @@ def parse_data_types(
     With a `memo` and the element's `key`, each type is parsed once."""
     children = [child for child in element if child.tag == "DataType"]
     keys = child_keys(key, "DataType", len(children)) if memo and key else None
+    known = memo.data_type if memo else {}
     types: dict[str, EsiDataType] = {}
     lines: dict[str, int | None] = {}
-    for position, child in enumerate(children):
-        if keys is None or memo is None:
-            data_type = parse_data_type(child)
-        else:
-            data_type = memo.data_type.get(keys[position])
-            if data_type is None:
-                data_type = memo.data_type[keys[position]] = parse_data_type(child)
+    for child, data_type in zip(
+        children, shared(parse_data_type, children, keys, known), strict=True
+    ):
         types.setdefault(data_type.name, data_type)
         lines.setdefault(data_type.name, child.sourceline)
     for data_type in types.values():
@@ -309,8 +308,25 @@ class ObjectFacts(NamedTuple):
     """`Info/SubItem` defaults by sub-item name (the first of a name wins)."""
 
 
-def read_object(element: Element) -> ObjectFacts:
-    """The facts of one `<Object>`; errors are placed."""
+def _sub_item_defaults(element: Element) -> tuple[str, Defaults]:
+    """Name and defaults of an object's `Info/SubItem`."""
+    name = ""
+    defaults = _NO_DEFAULTS
+    for part in element:
+        tag = part.tag
+        if tag == "Name":
+            text = part.text
+            name = text.strip() if text else ""
+        elif tag == "Info":
+            defaults = _defaults(part)
+    return name, defaults
+
+
+def read_object(
+    element: Element, memo: ParseMemo | None = None, key: str = ""
+) -> ObjectFacts:
+    """The facts of one `<Object>`; errors are placed. With a `memo` and the
+    element's `key`, each distinct `Info/SubItem` is read once."""
     index: int | None = None
     name = ""
     type_name: str | None = None
@@ -341,22 +357,18 @@ def read_object(element: Element) -> ObjectFacts:
     default_data: str | None = None
     by_name: dict[str, Defaults] = {}
     if info is not None:
+        sub_items: list[Element] = []
         for child in info:
             tag = child.tag
             if tag == "SubItem":
-                sub_name = ""
-                defaults = _NO_DEFAULTS
-                for part in child:
-                    part_tag = part.tag
-                    if part_tag == "Name":
-                        text = part.text
-                        sub_name = text.strip() if text else ""
-                    elif part_tag == "Info":
-                        defaults = _defaults(part)
-                if sub_name not in by_name:
-                    by_name[sub_name] = defaults
+                sub_items.append(child)
             elif tag == "DefaultData":
                 default_data = text_of(child) or None
+        keys = child_keys(key, "SubItem", len(sub_items)) if memo else None
+        known = memo.sub_item_defaults if memo else {}
+        for sub_name, defaults in shared(_sub_item_defaults, sub_items, keys, known):
+            if sub_name not in by_name:
+                by_name[sub_name] = defaults
     return ObjectFacts(
         index,
         name,
@@ -390,24 +402,24 @@ def resolve_object(
     facts: ObjectFacts, data_type: EsiDataType | None, rows: Rows
 ) -> EsiCoeObject:
     """The object with its sub-items resolved through its data type."""
-    index, name, type_name = facts.object_index, facts.name, facts.type_name
-    access = facts.access
+    index, access = facts.object_index, facts.access
+    by_name = facts.defaults_by_name
     sub_items: list[EsiCoeSubItem] = []
-    if rows:
-        by_name = facts.defaults_by_name
-        for (
-            subindex,
-            sub_name,
-            bits,
-            offset,
-            sub_type,
-            sub_access,
-            sub_pdo_mapping,
-            enum_items,
-        ) in rows:
-            defaults = by_name.get(sub_name, _NO_DEFAULTS)
-            sub_items.append(
-                EsiCoeSubItem(
+    for (
+        subindex,
+        sub_name,
+        bits,
+        offset,
+        sub_type,
+        sub_access,
+        sub_pdo_mapping,
+        enum_items,
+    ) in rows:
+        defaults = by_name.get(sub_name, _NO_DEFAULTS)
+        sub_items.append(
+            new_record(
+                EsiCoeSubItem,
+                (
                     index,
                     subindex,
                     sub_name,
@@ -422,19 +434,23 @@ def resolve_object(
                     defaults[3],
                     defaults[4],
                     enum_items,
-                )
+                ),
             )
-    return EsiCoeObject(
-        index,
-        name,
-        type_name,
-        facts.bit_size,
-        access,
-        facts.pdo_mapping,
-        facts.category,
-        facts.default_data,
-        tuple(sub_items),
-        data_type.enum_items if data_type is not None else (),
+        )
+    return new_record(
+        EsiCoeObject,
+        (
+            index,
+            facts.name,
+            facts.type_name,
+            facts.bit_size,
+            access,
+            facts.pdo_mapping,
+            facts.category,
+            facts.default_data,
+            tuple(sub_items),
+            data_type.enum_items if data_type is not None else (),
+        ),
     )
 
 
@@ -460,27 +476,33 @@ def _objects(
     element: Element, table: TypeTable, check: bool, memo: ParseMemo | None
 ) -> dict[int, EsiCoeObject]:
     """`<Objects>` -> objects by index (the first of an index wins)."""
-    children = [child for child in element if child.tag == "Object"]
-    keys = None
-    if memo is not None:
-        keys = child_keys(element_key(element), "Object", len(children))
     objects: dict[int, EsiCoeObject] = {}
-    if keys is None or memo is None:
-        for child in children:
+    if memo is None:
+        for child in element.iterchildren("Object"):
             coe_object = parse_object(child, table, check)
             objects.setdefault(coe_object.index, coe_object)
         return objects
-    for child, key in zip(children, keys, strict=True):
-        facts = memo.object_facts.get(key)
+    key = element_key(element)
+    table_key = (key, id(table))
+    known = memo.object_tables.get(table_key)
+    if known is not None:
+        return dict(known)
+    children = list(element.iterchildren("Object"))
+    keys = child_keys(key, "Object", len(children))
+    if keys is None:
+        keys = [element_key(child) for child in children]
+    for child, child_key in zip(children, keys, strict=True):
+        facts = memo.object_facts.get(child_key)
         if facts is None:
-            facts = memo.object_facts[key] = read_object(child)
+            facts = memo.object_facts[child_key] = read_object(child, memo, child_key)
         data_type, rows = object_type(facts, child, table, check)
-        meaning = (key, id(data_type), id(rows))
+        meaning = (child_key, id(data_type), id(rows))
         coe_object = memo.objects.get(meaning)
         if coe_object is None:
             coe_object = memo.objects[meaning] = resolve_object(facts, data_type, rows)
         objects.setdefault(coe_object.index, coe_object)
-    return objects
+    memo.object_tables[table_key] = objects
+    return dict(objects)
 
 
 def parse_dictionary(
