@@ -156,14 +156,12 @@ def parse_data_types(
     """`<DataTypes>` -> name -> type, checking that every reference resolves.
 
     With a `memo` and the element's `key`, each type is parsed once."""
-    children = [child for child in element if child.tag == "DataType"]
-    keys = child_keys(key, "DataType", len(children)) if memo and key else None
-    known = memo.data_type if memo else {}
+    children = list(element.iterchildren("DataType"))
+    known = memo.data_type if memo and key else None
     types: dict[str, EsiDataType] = {}
     lines: dict[str, int | None] = {}
-    for child, data_type in zip(
-        children, shared(parse_data_type, children, keys, known), strict=True
-    ):
+    parsed = shared(parse_data_type, children, "DataType", key, known)
+    for child, data_type in zip(children, parsed, strict=True):
         types.setdefault(data_type.name, data_type)
         lines.setdefault(data_type.name, child.sourceline)
     for data_type in types.values():
@@ -357,16 +355,12 @@ def read_object(
     default_data: str | None = None
     by_name: dict[str, Defaults] = {}
     if info is not None:
-        sub_items: list[Element] = []
-        for child in info:
-            tag = child.tag
-            if tag == "SubItem":
-                sub_items.append(child)
-            elif tag == "DefaultData":
-                default_data = text_of(child) or None
-        keys = child_keys(key, "SubItem", len(sub_items)) if memo else None
-        known = memo.sub_item_defaults if memo else {}
-        for sub_name, defaults in shared(_sub_item_defaults, sub_items, keys, known):
+        for data in info.iterchildren("DefaultData"):
+            default_data = text_of(data) or None
+        sub_items = list(info.iterchildren("SubItem"))
+        known = memo.sub_item_defaults if memo else None
+        parsed = shared(_sub_item_defaults, sub_items, "SubItem", key, known)
+        for sub_name, defaults in parsed:
             if sub_name not in by_name:
                 by_name[sub_name] = defaults
     return ObjectFacts(

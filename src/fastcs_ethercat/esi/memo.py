@@ -61,18 +61,22 @@ def child_keys(key: str, tag: str, count: int) -> list[str] | None:
 def shared(
     parse: Callable[[Element], Parsed],
     elements: list[Element],
-    keys: list[str] | None,
-    known: dict[str, Parsed],
+    tag: str,
+    key: str,
+    known: dict[str, Parsed] | None,
 ) -> list[Parsed]:
-    """`parse` of each element, or what an identical one gave before (by
-    `keys`, see `child_keys`; None: parse each)."""
-    if keys is None:
+    """`parse` of each of `elements` (every `<tag>` inside the element
+    serialised as `key`); with a memo table `known`, each distinct one is
+    parsed once (its key cut by `child_keys`; where they cannot be cut,
+    each is parsed)."""
+    keys = child_keys(key, tag, len(elements)) if known is not None else None
+    if keys is None or known is None:
         return [parse(element) for element in elements]
     values: list[Parsed] = []
-    for element, key in zip(elements, keys, strict=True):
-        value = known.get(key)
+    for element, element_key in zip(elements, keys, strict=True):
+        value = known.get(element_key)
         if value is None:
-            value = known[key] = parse(element)
+            value = known[element_key] = parse(element)
         values.append(value)
     return values
 

@@ -12,7 +12,7 @@ and says so.
 from __future__ import annotations
 
 from .channels import channel_template
-from .memo import ParseMemo, child_keys, shared
+from .memo import ParseMemo, shared
 from .model import EsiEntry, EsiPdo, PdoDirection, new_record
 from .xmltext import NUMBERS, Element, bool_attr, fail, int_attr, int_of, text_of
 
@@ -70,23 +70,18 @@ def parse_pdo(
     index: int | None = None
     name: str | None = None
     excludes: list[int] = []
-    entry_elements: list[Element] = []
-    for child in element:
+    for child in element.iterchildren("Index", "Name", "Exclude"):
         tag = child.tag
-        if tag == "Entry":
-            entry_elements.append(child)
-        elif tag == "Index":
+        if tag == "Index":
             index = int_of(child, "PDO Index")
         elif tag == "Name":
             if name is None:
                 name = text_of(child)
         elif tag == "Exclude":
             excludes.append(int_of(child, "PDO Exclude"))
-    if memo is None:
-        entries = [parse_entry(entry) for entry in entry_elements]
-    else:
-        keys = child_keys(key, "Entry", len(entry_elements))
-        entries = shared(parse_entry, entry_elements, keys, memo.entries)
+    entry_elements = list(element.iterchildren("Entry"))
+    known = memo.entries if memo else None
+    entries = shared(parse_entry, entry_elements, "Entry", key, known)
     if index is None:
         reference = element.get("Ref")
         if reference is not None:
