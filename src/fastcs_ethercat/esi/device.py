@@ -22,14 +22,14 @@ from .model import (
 )
 from .oversampling import derive_oversampling
 from .pdos import PDO_TAGS, parse_pdo
-from .xmltext import Element, fail, int_attr, int_of, text_of
+from .xmltext import Element, fail, first_at, int_attr, int_of, text_of
 
 ENGLISH = 1033
 
 
 def identity_of(device: Element) -> tuple[str, int, int]:
     """(type name, product code, revision) from `<Type>`; errors are placed."""
-    type_element = device.find("Type")
+    type_element = first_at(device, "Type")
     if type_element is None:
         raise fail(device, "<Device> has no <Type>")
     type_name = text_of(type_element)
@@ -161,14 +161,14 @@ def parse_device(
                 )
             )
         elif tag == "Info":
-            twincat = child.find("VendorSpecific/TwinCAT")
+            twincat = first_at(child, "VendorSpecific", "TwinCAT")
         elif tag == "Mailbox":
             has_mailbox = True
-            has_coe = child.find("CoE") is not None
+            has_coe = first_at(child, "CoE") is not None
         elif tag == "Dc":
             dc_op_modes.extend(_dc_op_modes(child, memo))
         elif tag == "Profile":
-            dictionary = child.find("Dictionary")
+            dictionary = first_at(child, "Dictionary")
             if dictionary is not None:
                 data_types, coe_objects = parse_dictionary(dictionary, memo)
     pdos = tx_pdos + rx_pdos

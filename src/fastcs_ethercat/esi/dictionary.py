@@ -355,9 +355,12 @@ def read_object(
     default_data: str | None = None
     by_name: dict[str, Defaults] = {}
     if info is not None:
-        for data in info.iterchildren("DefaultData"):
-            default_data = text_of(data) or None
-        sub_items = list(info.iterchildren("SubItem"))
+        sub_items: list[Element] = []
+        for child in info:  # one loop: a tag filter costs more to set up
+            if child.tag == "SubItem":
+                sub_items.append(child)
+            elif child.tag == "DefaultData":
+                default_data = text_of(child) or None
         known = memo.sub_item_defaults if memo else None
         parsed = shared(_sub_item_defaults, sub_items, "SubItem", key, known)
         for sub_name, defaults in parsed:

@@ -70,16 +70,18 @@ def parse_pdo(
     index: int | None = None
     name: str | None = None
     excludes: list[int] = []
-    for child in element.iterchildren("Index", "Name", "Exclude"):
+    entry_elements: list[Element] = []
+    for child in element:
         tag = child.tag
-        if tag == "Index":
+        if tag == "Entry":
+            entry_elements.append(child)
+        elif tag == "Index":
             index = int_of(child, "PDO Index")
         elif tag == "Name":
             if name is None:
                 name = text_of(child)
         elif tag == "Exclude":
             excludes.append(int_of(child, "PDO Exclude"))
-    entry_elements = list(element.iterchildren("Entry"))
     known = memo.entries if memo else None
     entries = shared(parse_entry, entry_elements, "Entry", key, known)
     if index is None:
