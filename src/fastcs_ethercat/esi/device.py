@@ -18,6 +18,7 @@ from .model import (
     EsiDevice,
     EsiHideType,
     EsiPdo,
+    EsiPdoGroup,
     EsiSyncManager,
 )
 from .oversampling import derive_oversampling
@@ -113,6 +114,27 @@ def _dc_op_modes(element: Element, memo: ParseMemo | None) -> tuple[EsiDcOpMode,
     return modes
 
 
+def _groups(
+    twincat: Element | None,
+    pdos: list[EsiPdo],
+    sync_managers: list[EsiSyncManager],
+    memo: ParseMemo | None,
+) -> tuple[EsiPdoGroup, ...]:
+    """`derive_groups`, once per memo for the same `TwinCAT` text, PDOs
+    (shared objects of the memo, so their identities) and sync managers."""
+    if memo is None:
+        return derive_groups(twincat, pdos, sync_managers)
+    key = (
+        "" if twincat is None else element_key(twincat),
+        tuple(map(id, pdos)),
+        tuple(sync_managers),
+    )
+    groups = memo.groups.get(key)
+    if groups is None:
+        groups = memo.groups[key] = derive_groups(twincat, pdos, sync_managers)
+    return groups
+
+
 def parse_device(
     device: Element, *, vendor_id: int, source: str, memo: ParseMemo | None = None
 ) -> EsiDevice:
@@ -172,7 +194,7 @@ def parse_device(
             if dictionary is not None:
                 data_types, coe_objects = parse_dictionary(dictionary, memo)
     pdos = tx_pdos + rx_pdos
-    groups = derive_groups(twincat, pdos, sync_managers)
+    groups = _groups(twincat, pdos, sync_managers, memo)
     default_group = next((g.name for g in groups if g.is_default), None)
     return EsiDevice(
         type_name=type_name,

@@ -158,23 +158,36 @@ def parse_data_types(
     With a `memo` and the element's `key`, each type is parsed once."""
     children = list(element.iterchildren("DataType"))
     known = memo.data_type if memo and key else None
-    types: dict[str, EsiDataType] = {}
-    lines: dict[str, int | None] = {}
     parsed = shared(parse_data_type, children, "DataType", key, known)
-    for child, data_type in zip(children, parsed, strict=True):
+    types: dict[str, EsiDataType] = {}
+    for data_type in parsed:
         types.setdefault(data_type.name, data_type)
-        lines.setdefault(data_type.name, child.sourceline)
     for data_type in types.values():
-        referenced = [sub.type_name for sub in data_type.sub_items]
-        if data_type.base_type:
-            referenced.append(data_type.base_type)
-        for name in referenced:
-            if name not in types and not is_base_type(name):
-                raise EsiFormatError(
-                    f"data type {data_type.name} uses unknown data type {name!r}",
-                    lines[data_type.name],
-                )
+        for sub in data_type.sub_items:
+            if sub.type_name not in types and not is_base_type(sub.type_name):
+                raise _unknown_type(data_type, sub.type_name, children, parsed)
+        base = data_type.base_type
+        if base and base not in types and not is_base_type(base):
+            raise _unknown_type(data_type, base, children, parsed)
     return types
+
+
+def _unknown_type(
+    data_type: EsiDataType,
+    name: str,
+    children: list[Element],
+    parsed: list[EsiDataType],
+) -> EsiFormatError:
+    """The error for a reference to an undefined type, placed at the first
+    definition of `data_type` (the one `parse_data_types` keeps)."""
+    line = next(
+        child.sourceline
+        for child, found in zip(children, parsed, strict=True)
+        if found.name == data_type.name
+    )
+    return EsiFormatError(
+        f"data type {data_type.name} uses unknown data type {name!r}", line
+    )
 
 
 Defaults = list[str | None]
@@ -469,6 +482,22 @@ def _type_table(element: Element, memo: ParseMemo | None) -> TypeTable:
     return table
 
 
+def _shared_object(
+    element: Element, key: str, table: TypeTable, check: bool, memo: ParseMemo
+) -> EsiCoeObject:
+    """One `<Object>` (text `key`) through `memo`: its facts read once, the
+    object resolved once per data type and expansion it meets."""
+    facts = memo.object_facts.get(key)
+    if facts is None:
+        facts = memo.object_facts[key] = read_object(element, memo, key)
+    data_type, rows = object_type(facts, element, table, check)
+    meaning = (key, id(data_type), id(rows))
+    coe_object = memo.objects.get(meaning)
+    if coe_object is None:
+        coe_object = memo.objects[meaning] = resolve_object(facts, data_type, rows)
+    return coe_object
+
+
 def _objects(
     element: Element, table: TypeTable, check: bool, memo: ParseMemo | None
 ) -> dict[int, EsiCoeObject]:
@@ -488,15 +517,14 @@ def _objects(
     keys = child_keys(key, "Object", len(children))
     if keys is None:
         keys = [element_key(child) for child in children]
+    table_id = id(table)
     for child, child_key in zip(children, keys, strict=True):
-        facts = memo.object_facts.get(child_key)
-        if facts is None:
-            facts = memo.object_facts[child_key] = read_object(child, memo, child_key)
-        data_type, rows = object_type(facts, child, table, check)
-        meaning = (child_key, id(data_type), id(rows))
-        coe_object = memo.objects.get(meaning)
+        in_table = (child_key, table_id)
+        coe_object = memo.objects_in_table.get(in_table)
         if coe_object is None:
-            coe_object = memo.objects[meaning] = resolve_object(facts, data_type, rows)
+            coe_object = memo.objects_in_table[in_table] = _shared_object(
+                child, child_key, table, check, memo
+            )
         objects.setdefault(coe_object.index, coe_object)
     memo.object_tables[table_key] = objects
     return dict(objects)

@@ -18,13 +18,26 @@ from typing import TYPE_CHECKING, TypeVar
 
 from lxml import etree
 
-from .model import EsiCoeObject, EsiDataType, EsiDcOpMode, EsiEntry, EsiPdo
+from .model import (
+    EsiCoeObject,
+    EsiDataType,
+    EsiDcOpMode,
+    EsiEntry,
+    EsiPdo,
+    EsiPdoGroup,
+    EsiSyncManager,
+)
 from .xmltext import Element
 
 if TYPE_CHECKING:
     from .dictionary import Defaults, ObjectFacts, Rows, TypeTable
 
 Parsed = TypeVar("Parsed")
+
+GroupsKey = tuple[str, tuple[int, ...], tuple[EsiSyncManager, ...]]
+"""What PDO groups depend on: the `TwinCAT` element's text ("" without
+one), the identities of the device's PDOs (shared objects of the memo) and
+its sync managers."""
 
 
 def element_key(element: Element) -> str:
@@ -89,9 +102,11 @@ class ParseMemo:
         "data_types",
         "dc_op_modes",
         "entries",
+        "groups",
         "object_facts",
         "object_tables",
         "objects",
+        "objects_in_table",
         "pdos",
         "rows",
         "sub_item_defaults",
@@ -101,6 +116,8 @@ class ParseMemo:
         self.pdos: dict[str, EsiPdo] = {}
         self.dc_op_modes: dict[str, tuple[EsiDcOpMode, ...]] = {}
         """Dc text -> its parsed OpModes."""
+        self.groups: dict[GroupsKey, tuple[EsiPdoGroup, ...]] = {}
+        """(TwinCAT text, PDO identities, sync managers) -> PDO groups."""
         self.entries: dict[str, EsiEntry] = {}
         """PDO Entry text (see `child_keys`) -> the parsed entry."""
         self.data_types: dict[str, TypeTable] = {}
@@ -119,6 +136,10 @@ class ParseMemo:
         self.sub_item_defaults: dict[str, tuple[str, Defaults]] = {}
         """`Object/Info/SubItem` text (see `child_keys`) -> its name and
         defaults."""
+        self.objects_in_table: dict[tuple[str, int], EsiCoeObject] = {}
+        """(Object text, identity of the type table) -> object: the same
+        object with the same table is the same object, without resolving
+        its type again."""
         self.object_tables: dict[tuple[str, int], dict[int, EsiCoeObject]] = {}
         """(Objects text, identity of the type table) -> objects by index:
         whole dictionaries repeat (225 in the shared files, 135 distinct)."""
