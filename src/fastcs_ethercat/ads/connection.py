@@ -21,6 +21,7 @@ import asyncio
 import errno
 import logging
 import socket
+import time
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -117,6 +118,8 @@ class ConnectionStats:
     late_answers: int = 0
     notifications: int = 0
     malformed: Counter[Malformed] = field(default_factory=Counter)
+    last_heard: float = 0.0
+    """time.monotonic() of the last bytes from the target (any frame)."""
 
     @property
     def malformed_total(self) -> int:
@@ -407,6 +410,7 @@ class AmsTcpConnection:
     def _received(self, protocol: _Protocol, data: bytes) -> None:
         if protocol is not self._protocol:
             return  # a connection already given up
+        self.stats.last_heard = time.monotonic()
         for event in self._session.receive(data):
             self._dispatch(event)
 

@@ -98,7 +98,11 @@ class Reconnection:
         self.registry = registry
         self.chain_changes = ""
         self.supervisor = Supervisor(
-            self.probe, self, plan.symbol_version, connected=not plan.offline_from
+            self.probe,
+            self,
+            plan.symbol_version,
+            connected=not plan.offline_from,
+            heard_at=lambda: connection.pool.connection.stats.last_heard,
         )
         connection.state_of = lambda: self.supervisor.state
         connection.wake = self.supervisor.poke

@@ -6,7 +6,10 @@ work:
 
 - no answer in `probe_timeout` (or an ADS error): `lost`, then `reconnect`
   with growing pauses until it succeeds (the app closes and reopens its
-  clients, discovers again and resumes polling);
+  clients, discovers again and resumes polling). A probe that times out
+  while the target's connection still brings frames is slow, not lost (a
+  loaded host, ours or the PLC's): lost only once probes have gone
+  unanswered for `SLOW_PROBE_LIMIT_S`;
 - the runtime not in RUN: `stopped` once; back in RUN: `resync`;
 - another symbol version (online change), or a master whose symbol handles
   went invalid (`request_resync`: the only sign of an online change where
@@ -40,6 +43,9 @@ PROBE_TIMEOUT_S: Final = 0.5
 """A loss shows within PROBE_PERIOD_S + PROBE_TIMEOUT_S (0.7 s) plus the time
 to mark every PV INVALID: inside the 1 s issue 5 asks for, while a probe may
 still take half a second on a loaded host before it counts as lost."""
+SLOW_PROBE_LIMIT_S: Final = 3.0
+"""How long probes may time out while other answers still come from the target
+before it counts as lost (its I/O server hangs while the router answers)."""
 RECONNECT_TIMEOUT_S: Final = 30.0
 RECONNECT_LOG_INTERVAL_S: Final = 10.0
 """At most one line per this interval about failed reconnects (an outage of
@@ -67,6 +73,8 @@ class Probe:
 
 
 Prober = Callable[[], Awaitable[Probe]]
+HeardAt = Callable[[], float]
+"""time.monotonic() of the last frame from the target."""
 
 
 class Link(Protocol):
@@ -108,6 +116,8 @@ class SupervisorStats:
 
     state: LinkState = LinkState.CONNECTED
     probes: int = 0
+    slow_probes: int = 0
+    """Probes that timed out while the target still sent other frames."""
     losses: int = 0
     reconnects: int = 0
     resyncs: int = 0
@@ -130,8 +140,12 @@ class Supervisor:
         probe_timeout_s: float = PROBE_TIMEOUT_S,
         backoff: Backoff | None = None,
         connected: bool = True,
+        heard_at: HeardAt = lambda: 0.0,
+        slow_limit_s: float = SLOW_PROBE_LIMIT_S,
     ) -> None:
         self.probe = probe
+        self.heard_at = heard_at
+        self.slow_limit_s = slow_limit_s
         self.link = link
         self.symbol_version = symbol_version
         self.period_s = period_s
@@ -143,9 +157,10 @@ class Supervisor:
             self.stats.state = LinkState.DISCONNECTED
             self.stats.lost_at = time.monotonic()
         self._wake = asyncio.Event()
-        self._reconnect_log = RateLimitedLog(logger, RECONNECT_LOG_INTERVAL_S)
+        self._rare_log = RateLimitedLog(logger, RECONNECT_LOG_INTERVAL_S)
         self._resync_wanted = ""
         self._last_requested = -REQUESTED_RESYNC_EVERY_S
+        self._slow_since: float | None = None
 
     @property
     def state(self) -> LinkState:
@@ -183,14 +198,18 @@ class Supervisor:
 
     async def _step(self) -> None:
         self.stats.probes += 1
+        sent = time.monotonic()
         try:
             answer = await asyncio.wait_for(self.probe(), self.probe_timeout_s)
         except TimeoutError:
-            await self._lose(f"no answer from the target in {self.probe_timeout_s} s")
+            if not self._slow(sent):
+                reason = f"no answer from the target in {self.probe_timeout_s} s"
+                await self._lose(reason)
             return
         except Exception as error:
             await self._lose(f"{type(error).__name__}: {error}")
             return
+        self._slow_since = None
         if answer.ads_state != AdsState.RUN:
             if self.stats.state is not LinkState.STOPPED:
                 self.stats.state = LinkState.STOPPED
@@ -212,6 +231,25 @@ class Supervisor:
             if now - self._last_requested >= REQUESTED_RESYNC_EVERY_S:
                 self._last_requested = now
                 await self._resync(self._resync_wanted)
+
+    def _slow(self, sent: float) -> bool:
+        """A timed-out probe sent at `sent` is only slow while frames still
+        came from the target since, for at most `slow_limit_s`."""
+        if self.heard_at() >= sent:
+            if self._slow_since is None:
+                self._slow_since = sent
+            if time.monotonic() - self._slow_since <= self.slow_limit_s:
+                self.stats.slow_probes += 1
+                self._rare_log.warning(
+                    "slow probe",
+                    "target slow: no answer to a probe in %s s while other "
+                    "frames still come (lost after %s s of this)",
+                    self.probe_timeout_s,
+                    self.slow_limit_s,
+                )
+                return True
+        self._slow_since = None
+        return False
 
     async def _resync(self, why: str) -> None:
         self._resync_wanted = ""
@@ -252,7 +290,7 @@ class Supervisor:
                     else type(error).__name__
                 )
                 self.stats.last_error = f"reconnect failed: {text}"
-                self._reconnect_log.info(
+                self._rare_log.info(
                     "reconnect", "target: %s (trying again)", self.stats.last_error
                 )
                 continue

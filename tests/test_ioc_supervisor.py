@@ -1,0 +1,96 @@
+"""The supervisor tells a lost target from a slow one: a probe that times out
+while the target's connection still brings frames is slow, up to a limit."""
+
+from __future__ import annotations
+
+import asyncio
+import time
+from dataclasses import dataclass, field
+
+from fastcs_ethercat.ioc.supervisor import LinkState, Probe, Supervisor
+
+TIMEOUT_S = 0.02
+
+
+@dataclass
+class RecordingLink:
+    calls: list[str] = field(default_factory=list)
+
+    async def lost(self, reason: str) -> None:
+        self.calls.append(f"lost: {reason}")
+
+    async def stopped(self, ads_state: int) -> None:
+        self.calls.append("stopped")
+
+    async def reconnect(self) -> int:
+        self.calls.append("reconnect")
+        return 7
+
+    async def resync(self, why: str) -> int:
+        self.calls.append("resync")
+        return 7
+
+
+async def hung_probe() -> Probe:
+    await asyncio.sleep(10)
+    return Probe(5, 7)
+
+
+def supervisor(link: RecordingLink, heard_at: float | None) -> Supervisor:
+    """`heard_at`: None, the target sends nothing; else frames keep coming."""
+    return Supervisor(
+        hung_probe,
+        link,
+        7,
+        probe_timeout_s=TIMEOUT_S,
+        heard_at=lambda: time.monotonic() if heard_at is not None else 0.0,
+        slow_limit_s=0.2,
+    )
+
+
+async def test_a_silent_target_is_lost_at_the_first_timeout() -> None:
+    link = RecordingLink()
+    watch = supervisor(link, heard_at=None)
+    await watch.step()
+    assert link.calls[:2] == [
+        f"lost: no answer from the target in {TIMEOUT_S} s",
+        "reconnect",
+    ]
+    assert watch.stats.slow_probes == 0 and watch.stats.losses == 1
+
+
+async def test_a_target_that_still_sends_is_slow_until_the_limit() -> None:
+    link = RecordingLink()
+    watch = supervisor(link, heard_at=0.0)
+    started = time.monotonic()
+    while not link.calls:
+        await watch.step()
+    waited = time.monotonic() - started
+    assert link.calls[0].startswith("lost: no answer")
+    assert waited >= 0.2  # the limit, not the first timeout
+    assert watch.stats.slow_probes >= 3 and watch.stats.losses == 1
+    assert watch.state is LinkState.CONNECTED  # reconnected
+
+
+async def test_an_answer_ends_the_slow_spell() -> None:
+    answers: list[bool] = [False, False, True, False]
+
+    async def probe() -> Probe:
+        if not answers.pop(0):
+            await asyncio.sleep(10)
+        return Probe(5, 7)
+
+    link = RecordingLink()
+    watch = Supervisor(
+        probe,
+        link,
+        7,
+        probe_timeout_s=TIMEOUT_S,
+        heard_at=time.monotonic,
+        slow_limit_s=1.0,
+    )
+    for _ in range(4):
+        await watch.step()
+        await asyncio.sleep(0.02)
+    assert link.calls == []  # 2 slow, 1 answer (a fresh spell), 1 slow
+    assert watch.stats.slow_probes == 3
