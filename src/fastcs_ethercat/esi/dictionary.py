@@ -337,7 +337,39 @@ def read_object(
     element: Element, memo: ParseMemo | None = None, key: str = ""
 ) -> ObjectFacts:
     """The facts of one `<Object>`; errors are placed. With a `memo` and the
-    element's `key`, each distinct `Info/SubItem` is read once."""
+    element's `key`, objects that differ only in their leading Index and
+    Name (one per channel: #x6000, #x6010, ...) are read once, and each
+    distinct `Info/SubItem` too."""
+    rest = _after_index_and_name(element, key) if memo is not None else None
+    if rest is None or memo is None:
+        return _read_object(element, memo, key)
+    name = text_of(element[1])
+    shape = memo.object_rests.get(rest) if name else None
+    if shape is not None:
+        index = int_of(element[0], "object Index")
+        return new_record(ObjectFacts, (index, name, *shape[2:]))
+    facts = _read_object(element, memo, key)
+    if name:
+        memo.object_rests[rest] = facts
+    return facts
+
+
+def _after_index_and_name(element: Element, key: str) -> str | None:
+    """The text (`key`) of an object after its first two children when they
+    are a leaf `<Index>` and a leaf `<Name>`, and no other `<Index>` follows
+    (it would win): all of its facts but those two. None otherwise."""
+    if not key or len(element) < 2:
+        return None
+    index, name = element[0], element[1]
+    if index.tag != "Index" or name.tag != "Name" or len(index) or len(name):
+        return None
+    rest = key[key.find("</Name>") + len("</Name>") :]
+    return None if "<Index" in rest else rest
+
+
+def _read_object(element: Element, memo: ParseMemo | None, key: str) -> ObjectFacts:
+    """`read_object` without the shortcut for objects alike but for their
+    Index and Name."""
     index: int | None = None
     name = ""
     type_name: str | None = None

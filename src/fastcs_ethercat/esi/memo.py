@@ -104,6 +104,7 @@ class ParseMemo:
         "entries",
         "groups",
         "object_facts",
+        "object_rests",
         "object_tables",
         "objects",
         "objects_in_table",
@@ -136,6 +137,9 @@ class ParseMemo:
         self.sub_item_defaults: dict[str, tuple[str, Defaults]] = {}
         """`Object/Info/SubItem` text (see `child_keys`) -> its name and
         defaults."""
+        self.object_rests: dict[str, ObjectFacts] = {}
+        """Object text after its leading Index and Name (see
+        `dictionary.read_object`) -> the facts of one such object."""
         self.objects_in_table: dict[tuple[str, int], EsiCoeObject] = {}
         """(Object text, identity of the type table) -> object: the same
         object with the same table is the same object, without resolving
