@@ -24,7 +24,7 @@ import numpy as np
 
 from fastcs_ethercat.ads.constants import IndexGroup
 from fastcs_ethercat.ioc.decode import PollLayout
-from fastcs_ethercat.ioc.plan import Point, PointKind
+from fastcs_ethercat.ioc.plan import Point, PointKind, Source
 
 REPO = Path(__file__).resolve().parents[1]
 BYTES = IndexGroup.IO_IMAGE_RW_OUTPUT_BYTES
@@ -52,7 +52,7 @@ def synthetic_points(count: int) -> list[Point]:
                         2,
                         bit_offset=n * 2,
                         bit_size=1,
-                        source=channel,
+                        source=Source(channel),
                     )
                 )
             points.append(
@@ -65,8 +65,7 @@ def synthetic_points(count: int) -> list[Point]:
                     BYTES,
                     offset + 2,
                     2,
-                    source=channel,
-                    source_offset=2,
+                    source=Source(channel, 2),
                 )
             )
             offset += 4

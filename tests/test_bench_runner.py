@@ -4,6 +4,7 @@ No timing is asserted (figures are printed by the benchmark, not tested)."""
 
 from __future__ import annotations
 
+import importlib.util
 import json
 from pathlib import Path
 from typing import Any
@@ -11,6 +12,7 @@ from typing import Any
 import pytest
 from typer.testing import CliRunner
 
+from fastcs_ethercat.bench import bytecode
 from fastcs_ethercat.bench.chains import (
     SCAN_SYMBOLS_PER_TERMINAL,
     demo_mix,
@@ -155,3 +157,12 @@ def test_the_bench_serves_on_ports_of_its_own() -> None:
         "EPICS_CA_SERVER_PORT", "EPICS_PVA_BROADCAST_PORT", "EPICS_PVA_SERVER_PORT"
     ]  # fmt: skip
     assert "5064" not in chosen.values() and kept["EPICS_CA_SERVER_PORT"] == "5999"
+
+
+def test_the_bench_compiles_the_package_bytecode_as_an_install_has_it() -> None:
+    """An IOC start is timed against compiled modules, as pip installs them."""
+    cached = Path(importlib.util.cache_from_source(bytecode.__file__))
+    cached.unlink(missing_ok=True)
+
+    assert bytecode.compile_package()
+    assert cached.is_file()

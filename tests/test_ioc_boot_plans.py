@@ -93,8 +93,8 @@ def shape(plan: SystemPlan) -> list[tuple[object, ...]]:
             master.net_id,
             terminal.slave.name,
             terminal.slave.address,
-            terminal.slave.product_code,
-            terminal.slave.revision,
+            terminal.slave.identity.product_code,
+            terminal.slave.identity.revision,
             terminal.slave.type_name,
             terminal.slave.coupler,
             terminal.terminal_type,
@@ -159,7 +159,7 @@ def test_a_type_without_yaml_is_kept_by_its_identity(
     [entry] = [s for s in data["masters"][0]["slaves"] if s["type"] == "EL3202"]
 
     assert el3202.terminal_type is None
-    assert entry["product_code"] == el3202.slave.product_code
+    assert entry["product_code"] == el3202.slave.identity.product_code
     assert "pdo_group" not in entry
     replayed = offline(parse_chain(_text(data)), without)
     assert shape(replayed)[9][:8] == shape(generic)[9][:8]  # identity, name, place

@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 
 import pytest
 
+from fastcs_ethercat.ads.ethercat import SlaveIdentity
 from fastcs_ethercat.ioc.controllers.root import fold_by_terminal
 from fastcs_ethercat.ioc.plan import (
     MasterPlan,
@@ -88,7 +89,9 @@ def _plan(slaves: dict[int, list[str]]) -> SystemPlan:
     master = MasterPlan(1, "Device 1 (EtherCAT)", "5.1.2.3.2.1", 27905)
     for address, symbols in slaves.items():
         name = f"Term {address - 1000} (EL3104)"
-        terminal = TerminalPlan(SlaveInfo(address, name, 2, 3, 0x100000), "EL3104")
+        terminal = TerminalPlan(
+            SlaveInfo(address, name, SlaveIdentity(2, 3, 0x100000)), "EL3104"
+        )
         terminal.points = [_point(master.name, f"{name}.{s}") for s in symbols]
         master.terminals.append(terminal)
     return SystemPlan("5.1.2.3.1.1", "", "", 0, [master])

@@ -22,6 +22,7 @@ from fastcs_ethercat.ads.ethercat import (
     AlState,
     AlStateFlag,
     FrameCounters,
+    SlaveIdentity,
     SlaveState,
 )
 from fastcs_ethercat.ioc.alarms import NO_ALARM, Severity, Status, value_alarm
@@ -117,8 +118,8 @@ COE = [CoePoint("presentation", 0x8000, 0x02, "DT0800EN03", 3, True,
 
 def _plan() -> SystemPlan:
     def slave(name: str, position: int, **extra: Any) -> SlaveInfo:
-        return SlaveInfo(1001 + position, name, 2, 0x1000 + position, 1,
-                         position=position, **extra)  # fmt: skip
+        identity = SlaveIdentity(2, 0x1000 + position, 1)
+        return SlaveInfo(1001 + position, name, identity, position=position, **extra)
 
     terminals = [
         TerminalPlan(slave(COUPLER, 0, is_coupler=True), "EK1100"),

@@ -76,7 +76,8 @@ def test_every_slave_with_name_address_and_identity(
         assert slave.name == f"Term {position + 1} ({type_name})"
         assert slave.type_name == type_name
         identity = registry.get(type_name).terminal.identity
-        assert (slave.vendor_id, slave.product_code, slave.revision) == (
+        found = slave.identity
+        assert (found.vendor_id, found.product_code, found.revision) == (
             identity.vendor_id,
             identity.product_code,
             identity.revision_number,

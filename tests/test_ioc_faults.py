@@ -20,6 +20,7 @@ import pytest
 from fastcs.attributes import AttrR
 from fastcs.datatypes import Int
 
+from fastcs_ethercat.ads.ethercat import SlaveIdentity
 from fastcs_ethercat.ioc.alarms import Status
 from fastcs_ethercat.ioc.health import COMM, Health
 from fastcs_ethercat.ioc.plan import (
@@ -583,7 +584,9 @@ def test_writes_within_type_and_range_pass(point: Point, value: Any) -> None:
 def _plan(*slaves: tuple[int, str, int]) -> SystemPlan:
     master = MasterPlan(1, "Device 1 (EtherCAT)", "5.1.2.3.2.1", 27905)
     master.terminals = [
-        TerminalPlan(SlaveInfo(address, name, 2, product, 0x100000), name)
+        TerminalPlan(
+            SlaveInfo(address, name, SlaveIdentity(2, product, 0x100000)), name
+        )
         for address, name, product in slaves
     ]
     return SystemPlan("5.1.2.3.1.1", "sim", "3.1", 1, [master])
@@ -593,7 +596,9 @@ def test_chain_changes_name_what_went_came_and_changed() -> None:
     before = _plan((1001, "Term 1 (EK1100)", 1), (1002, "Term 2 (EL3104)", 2))
     after = _plan((1001, "Term 1 (EK1100)", 1), (1002, "Term 2 (EL3102)", 3))
     after.masters[0].terminals.append(
-        TerminalPlan(SlaveInfo(1003, "Term 3 (EL2024)", 2, 4, 0x100000), None)
+        TerminalPlan(
+            SlaveInfo(1003, "Term 3 (EL2024)", SlaveIdentity(2, 4, 0x100000)), None
+        )
     )
 
     changes = chain_changes(before, after)

@@ -19,7 +19,7 @@ from fastcs_ethercat.ioc.config import IocConfig
 from fastcs_ethercat.ioc.decode import PollLayout
 from fastcs_ethercat.ioc.discovery import discover
 from fastcs_ethercat.ioc.handles import PointHandles, acquire
-from fastcs_ethercat.ioc.plan import Point, PointKind, SystemPlan
+from fastcs_ethercat.ioc.plan import Point, PointKind, Source, SystemPlan
 from fastcs_ethercat.ioc.poller import Poller, pack_write
 from fastcs_ethercat.sim.process import SimProcess
 from fastcs_ethercat.terminals import load_terminals
@@ -118,7 +118,7 @@ async def test_one_sum_read_per_cycle(
     counters = sim.counters()
     assert counters["index_groups"] == {SUM_READ: 1}
     assert counters["total"] == math.ceil(len(points) / 500) == 1
-    assert poller.stats.requests == poller.stats.requests_per_cycle == 1
+    assert poller.stats.requests == len(poller.layout.chunks) == 1
 
 
 @pytest.mark.e2e
@@ -228,7 +228,7 @@ async def test_item_errors_do_not_stop_the_others(
     plan: SystemPlan, client: AdsClient
 ) -> None:
     good = all_points(plan)[:20]
-    bad = replace(good[0], key="bad", symbol="bad", source="bad")
+    bad = replace(good[0], key="bad", symbol="bad", source=Source("bad"))
     recorder = Recorder()
     handles = (await acquire(client, good)).reads | {"bad": 0x7FFF_FFFF}
     poller = Poller(
@@ -325,8 +325,11 @@ async def test_a_symbol_whose_shape_changed_gets_no_read_handle(
     """A handle is taken with the symbol's description: a symbol that is not
     what discovery saw (another size) is a problem, not a handle."""
     sample = by_key(plan)[key("Term 14 (EL3702).Ch1 Sample 0")]
-    resized = replace(sample, source_size=sample.source_size + 2)
-    gone = replace(sample, key="gone", source="Term 14 (EL3702).Ch9 Sample 0")
+    source = sample.source
+    assert source is not None
+    resized = replace(sample, source=replace(source, size=source.size + 2))
+    moved = replace(source, name="Term 14 (EL3702).Ch9 Sample 0")
+    gone = replace(sample, key="gone", source=moved)
     handles = await acquire(client, [resized, gone])
 
     assert handles.reads == {}
@@ -380,11 +383,11 @@ def test_layout_reads_each_source_once_up_to_its_last_needed_byte() -> None:
     word_bits = [
         replace(
             synthetic(f"b{n}", 10, 2, PointKind.BIT, bit_offset=n, bit_size=1),
-            source="status",
+            source=Source("status"),
         )
         for n in (0, 9, 15)
     ]
-    value = replace(synthetic("v", 12, 2), source="status", source_offset=2)
+    value = replace(synthetic("v", 12, 2), source=Source("status", 2))
     wc = [synthetic(f"wc{n}", 7, 1, PointKind.BIT) for n in range(2)]
     handles = {"status": 0x101, "wc0": 0x102, "wc1": 0x103}
     layout = PollLayout.build([*word_bits, value, *wc], handles)
@@ -404,8 +407,8 @@ def test_decode_reports_only_changed_bits_and_values() -> None:
         for n in (1, 8, 15)
     ]
     field = synthetic("f", 0, 2, PointKind.BITS, bit_offset=6, bit_size=3)
-    value = replace(synthetic("v", 2, 2), source="w", source_offset=2)
-    parts = [replace(p, source="w") for p in [*bits, field]]
+    value = replace(synthetic("v", 2, 2), source=Source("w", 2))
+    parts = [replace(p, source=Source("w")) for p in [*bits, field]]
     layout = PollLayout.build([*parts, value], {"w": 1})
     [chunk] = layout.chunks
 

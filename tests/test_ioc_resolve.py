@@ -13,6 +13,7 @@ from collections.abc import Iterator
 
 import pytest
 
+from fastcs_ethercat.ads.ethercat import SlaveIdentity
 from fastcs_ethercat.ads.symbols import AdsSymbolEntry
 from fastcs_ethercat.ioc.clients import ClientPool
 from fastcs_ethercat.ioc.config import IocConfig
@@ -281,7 +282,7 @@ def test_helpers() -> None:
     assert snake_case("1st") == "n1st"
     entry = AdsSymbolEntry("Term 1 (EL1014).Channel 1", 0xF031, 0, 1, 33, "BIT")
     assert group_symbols([entry]) == {"Term 1 (EL1014)": [entry]}
-    unknown = SlaveInfo(1001, "Term 1 (X)", 2, 0x1234, 1)
+    unknown = SlaveInfo(1001, "Term 1 (X)", SlaveIdentity(2, 0x1234, 1))
     assert resolve_terminal("M", unknown, [], {}, load_terminals([])).points == []
 
 

@@ -102,17 +102,43 @@ def test_field_checks_raise_the_library_errors_and_accept_repeats() -> None:
     ]
 
 
+def test_quick_quoting_writes_what_the_library_writes() -> None:
+    """Every character, alone and in text, is quoted as epicsdbbuilder
+    quotes it."""
+    out = _run(
+        """
+        from epicsdbbuilder import recordbase
+        from fastcs_ethercat.ioc.fastcs_adapter import install_quick_quoting
+        library = recordbase.quote_string
+        values = [chr(code) for code in range(300)] + [
+            "", "plain text", 'a "quoted" word', "back\\\\slash", "tab\\there",
+            "Grad \\u00b0C", "line\\nbreak",
+        ]
+        install_quick_quoting()
+        install_quick_quoting()  # idempotent
+        quick = recordbase.quote_string
+        print(quick is not library)
+        print(all(quick(value) == library(value) for value in values))
+        """
+    )
+    assert out.split() == ["True", "True"]
+
+
 def test_lean_imports_leave_shell_gui_and_setuptools_for_later() -> None:
-    """IPython, pvi, setuptools and prompt_toolkit are not imported at start;
-    what FastCS took from them imports them when called, and they import as
-    usual."""
+    """IPython, pvi, setuptools, prompt_toolkit and ruamel.yaml (FastCS's
+    YAML launcher) are not imported at start; what FastCS took from them
+    imports them when called, and they import as usual."""
     out = _run(
         """
         import sys
         from fastcs_ethercat.ioc.fastcs_adapter import import_ioc_modules
         import_ioc_modules()
-        unused = ("IPython", "pvi", "setuptools", "prompt_toolkit")
+        unused = ("IPython", "pvi", "setuptools", "prompt_toolkit", "ruamel")
         print(*(name in sys.modules for name in unused))
+        import fastcs
+        launch = fastcs.launch
+        from fastcs.launch import launch as real_launch
+        print(launch.__name__, real_launch.__module__, "ruamel" in sys.modules)
         from fastcs.logging import _logging
         proxy = _logging.StdoutProxy(raw=True)
         print(type(proxy).__module__)
@@ -128,7 +154,8 @@ def test_lean_imports_leave_shell_gui_and_setuptools_for_later() -> None:
         """
     )
     assert out.splitlines() == [
-        "False False False False",
+        "False False False False False",
+        "launch fastcs.launch True",
         "prompt_toolkit.patch_stdout",
         "fastcs.transports.epics.gui True",
         "True True",
@@ -153,19 +180,21 @@ def test_the_ioc_gives_up_realtime_scheduling_before_epics_starts() -> None:
 
 def test_the_collector_runs_rarely_and_freezes_what_the_start_built() -> None:
     """From the IOC's start a young collection waits for `GC_THRESHOLD`
-    objects (the collector still runs); once serving, what was built is
-    frozen out of its sight."""
+    objects (the collector still runs); the tree's burst pauses it; once
+    serving, what was built is frozen out of its sight and it runs again."""
     out = _run(
         """
         import gc
         from fastcs_ethercat import collector
         collector.collect_rarely()
         print(gc.get_threshold()[0] == collector.GC_THRESHOLD, gc.isenabled())
+        collector.pause()
+        print(gc.isenabled())
         built = [[position] for position in range(1000)]
         frozen = gc.get_freeze_count()
         collector.settle_garbage_collector()
         print(gc.get_freeze_count() - frozen >= len(built))
-        print(gc.get_threshold()[0] == collector.GC_THRESHOLD)
+        print(gc.get_threshold()[0] == collector.GC_THRESHOLD, gc.isenabled())
         """
     )
-    assert out.split() == ["True", "True", "True", "True"]
+    assert out.split() == ["True", "True", "False", "True", "True", "True"]

@@ -56,7 +56,7 @@ async def test_a_silent_target_is_lost_at_the_first_timeout() -> None:
         f"lost: no answer from the target in {TIMEOUT_S} s",
         "reconnect",
     ]
-    assert watch.stats.slow_probes == 0 and watch.stats.losses == 1
+    assert watch.stats.losses == 1
 
 
 async def test_a_target_that_still_sends_is_slow_until_the_limit() -> None:
@@ -68,12 +68,12 @@ async def test_a_target_that_still_sends_is_slow_until_the_limit() -> None:
     waited = time.monotonic() - started
     assert link.calls[0].startswith("lost: no answer")
     assert waited >= 0.2  # the limit, not the first timeout
-    assert watch.stats.slow_probes >= 3 and watch.stats.losses == 1
+    assert watch.stats.losses == 1
     assert watch.state is LinkState.CONNECTED  # reconnected
 
 
 async def test_an_answer_ends_the_slow_spell() -> None:
-    answers: list[bool] = [False, False, True, False]
+    answers = [False, True] * 6  # slow, answered, ...: 0.3 s, past the limit
 
     async def probe() -> Probe:
         if not answers.pop(0):
@@ -87,10 +87,11 @@ async def test_an_answer_ends_the_slow_spell() -> None:
         7,
         probe_timeout_s=TIMEOUT_S,
         heard_at=time.monotonic,
-        slow_limit_s=1.0,
+        slow_limit_s=0.1,
     )
-    for _ in range(4):
+    started = time.monotonic()
+    while answers:
         await watch.step()
-        await asyncio.sleep(0.02)
-    assert link.calls == []  # 2 slow, 1 answer (a fresh spell), 1 slow
-    assert watch.stats.slow_probes == 3
+        await asyncio.sleep(0.03)
+    assert time.monotonic() - started > 0.2
+    assert link.calls == []  # each answer began a fresh spell

@@ -53,11 +53,21 @@ def collect_rarely() -> None:
     gc.set_threshold(GC_THRESHOLD, *older)
 
 
+def pause() -> None:
+    """No collection until `settle_garbage_collector`: the IOC's tree, its
+    records and PVs are built in one burst once the chain is known, and
+    each young collection in it (every `GC_THRESHOLD` objects) walked 50 000
+    objects that all live on: ~0.1 s of a 104-terminal start."""
+    gc.disable()
+
+
 def settle_garbage_collector() -> None:
     """Once the IOC serves: what is built so far is moved out of the
-    collector's sight (`gc.freeze`), else every full collection walks it all."""
+    collector's sight (`gc.freeze`), else every full collection walks it all;
+    collections resume (`pause`)."""
     gc.freeze()
     collect_rarely()
+    gc.enable()
 
 
 def freeze_new() -> None:
@@ -70,5 +80,6 @@ __all__ = [
     "collect_rarely",
     "freeze_new",
     "held",
+    "pause",
     "settle_garbage_collector",
 ]

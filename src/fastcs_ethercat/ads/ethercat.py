@@ -237,6 +237,11 @@ class SlaveIdentity(FixedRecord):
     revision: int
     serial_number: int = 0
 
+    def __str__(self) -> str:
+        """`0x2/0xBB83052/0x110000`: vendor id, product code and revision,
+        as logs and descriptions name a slave that no YAML describes."""
+        return f"0x{self.vendor_id:X}/0x{self.product_code:X}/0x{self.revision:X}"
+
 
 @dataclass(frozen=True, slots=True)
 class FrameCounters(FixedRecord):

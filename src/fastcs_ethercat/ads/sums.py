@@ -32,7 +32,9 @@ import numpy.typing as npt
 
 from fastcs_ethercat.ads.commands import (
     AddDeviceNotificationRequest,
+    ReadRequest,
     ReadWriteRequest,
+    WriteRequest,
 )
 from fastcs_ethercat.ads.constants import (
     MAX_SUM_SUB_COMMANDS,
@@ -91,11 +93,8 @@ def _results(reader: ByteReader, count: int) -> tuple[int, ...]:
 # -- 0xF080 sum read --------------------------------------------------------
 
 
-@dataclass(frozen=True, slots=True)
-class SumReadItem:
-    index_group: int
-    index_offset: int
-    length: int
+SumReadItem = ReadRequest
+"""A sum read's sub-request is a Read's: group, offset, length."""
 
 
 class SumReadLayout:
@@ -243,11 +242,8 @@ class SumReadResponse:
 # -- 0xF081 sum write -------------------------------------------------------
 
 
-@dataclass(frozen=True, slots=True)
-class SumWriteItem:
-    index_group: int
-    index_offset: int
-    data: bytes
+SumWriteItem = WriteRequest
+"""A sum write's sub-request is a Write's: group, offset, data."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -303,12 +299,9 @@ class SumWriteResponse:
 # -- 0xF082 sum read-write --------------------------------------------------
 
 
-@dataclass(frozen=True, slots=True)
-class SumReadWriteItem:
-    index_group: int
-    index_offset: int
-    read_length: int
-    data: bytes = b""
+SumReadWriteItem = ReadWriteRequest
+"""A sum read-write's sub-request is a ReadWrite's: group, offset, read
+length, data."""
 
 
 @dataclass(frozen=True, slots=True)

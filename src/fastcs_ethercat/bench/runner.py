@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any, Final, TypeVar
 
 from fastcs_ethercat.bench import esi_sections, ioc_sections, scan_section
+from fastcs_ethercat.bench.bytecode import compile_package
 from fastcs_ethercat.bench.context import BenchContext
 from fastcs_ethercat.bench.machine import describe_machine
 from fastcs_ethercat.bench.repeater import stop_own_repeaters
@@ -172,8 +173,10 @@ def run_bench(
     sections: Collection[str] = SECTIONS,
     progress: Progress = print,
 ) -> dict[str, Any]:
-    """Run in a fresh scratch directory and loopback-only EPICS environment;
-    stop any caRepeater the CA client library started."""
+    """Run in a fresh scratch directory and loopback-only EPICS environment,
+    the package's bytecode compiled as an install has it; stop any
+    caRepeater the CA client library started."""
+    compile_package()
     for variable, value in EPICS_LOOPBACK_ENV.items():
         os.environ[variable] = value
     os.environ.update(server_ports(os.environ))

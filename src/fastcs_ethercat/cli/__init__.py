@@ -26,6 +26,10 @@ from fastcs_ethercat.cli.options import (
 )
 from fastcs_ethercat.cli.sim import sim_command
 from fastcs_ethercat.errors import UserError
+from fastcs_ethercat.generated_code import (
+    cache_generated_code,
+    settle_generated_code,
+)
 from fastcs_ethercat.logs import setup_logging
 
 if TYPE_CHECKING:  # Typer vendors Click; its groups' methods take these types
@@ -103,4 +107,8 @@ def run_cli(command: typer.Typer, prog_name: str | None = None) -> None:
 
 def app() -> None:
     """The `fastcs-ethercat` entry point."""
-    run_cli(_typer_app, "fastcs-ethercat")
+    cache_generated_code()
+    try:
+        run_cli(_typer_app, "fastcs-ethercat")
+    finally:
+        settle_generated_code()

@@ -35,6 +35,7 @@ from fastcs_ethercat.cli.options import (
 )
 from fastcs_ethercat.cli.ports import demo_ports
 from fastcs_ethercat.errors import UserError
+from fastcs_ethercat.generated_code import settle_generated_code
 from fastcs_ethercat.ioc.pvlists import PvListFormat, pv_list_text
 from fastcs_ethercat.logs import log_at_most
 from fastcs_ethercat.loopback import EPICS_LOOPBACK_ENV
@@ -141,7 +142,7 @@ def ioc_command(
         return
     if list_format is not PvListFormat.TEXT:
         raise UserError("--format goes with --list-pvs (or the `pv_lists_dir:` key)")
-    app.serve(settings)
+    app.serve(settings, on_ready=lambda _root: settle_generated_code())
 
 
 @ioc_app.command("schema")
@@ -188,6 +189,7 @@ def demo_command(
         )
 
         def ready(root: RootController) -> None:
+            settle_generated_code()
             entries = root.pvs()
             hints = DemoHints(ports, [entry.name for entry in entries])
             print(f"demo: simulator on {sim.pyads_ip} (NetId {sim.net_id})")

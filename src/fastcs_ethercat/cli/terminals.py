@@ -29,6 +29,7 @@ from rich.progress import (
     TextColumn,
 )
 
+from fastcs_ethercat.cli.options import AmsNetIdOption, TargetOption
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.esi.catalog import EsiCatalog
 from fastcs_ethercat.esi.model import CatalogEntry, EsiDevice, parse_esi_int
@@ -671,20 +672,8 @@ def edit_command(
         typer.Argument(metavar="[DIR]", help="Directory of terminal YAML files."),
     ] = Path("terminals"),
     esi: EsiOption = None,
-    target: Annotated[
-        str | None,
-        typer.Option(
-            "--target",
-            metavar="HOST[:PORT]",
-            help="TwinCAT (or the simulator): show each live terminal's PDO group.",
-        ),
-    ] = None,
-    ams_net_id: Annotated[
-        str | None,
-        typer.Option(
-            "--ams-net-id", help="The target's AMS NetId (default: ask it over UDP)."
-        ),
-    ] = None,
+    target: TargetOption = None,
+    ams_net_id: AmsNetIdOption = None,
     host: Annotated[
         str, typer.Option("--host", help="Address to serve on.")
     ] = LOOPBACK,
@@ -693,7 +682,11 @@ def edit_command(
     ] = 8080,
 ) -> None:
     """A web editor for the terminal files of DIR: PDO group, symbols, CoE
-    objects, oversampling, names, a diff before saving."""
+    objects, oversampling, names, a diff before saving.
+
+    With --target (TwinCAT or the simulator) it shows each live terminal's
+    PDO group.
+    """
     from fastcs_ethercat.editor.server import run_editor
 
     run_editor(directory, esi, target, host, port, ams_net_id)

@@ -51,7 +51,8 @@ from .sources import EsiDocument, SourceArg, find_documents
 from .xmltext import Element, EsiFormatError, fail, text_of
 
 _Row = list[Any]
-"""Cached form of a CatalogEntry (no source): see `_row` / `_entry`."""
+"""Cached form of a CatalogEntry (its fields in order, no source): see `_row`
+/ `_entry`."""
 _Scan = tuple[list[_Row], list[str], list[str]]
 """Rows, warnings and passive device names of one document."""
 
@@ -115,30 +116,15 @@ def _problem(device: Element, vendor_id: int, name: str, memo: ParseMemo) -> str
 
 
 def _entry(row: _Row, source: str) -> CatalogEntry:
-    (
-        type_name,
-        revision,
-        product_code,
-        vendor_id,
-        group_type,
-        groups,
-        text,
-        line,
-        pos,
-        problem,
-        hides,
-    ) = row
+    """The entry of a row: the row holds its fields in order (`described`:
+    type name to description), without `source`, with "" for no problem and
+    a list for the hidden revisions."""
+    *described, line, position, problem, hides = row
     return CatalogEntry(
-        type_name=type_name,
-        revision=revision,
-        product_code=product_code,
-        vendor_id=vendor_id,
-        group_type=group_type,
-        has_pdo_groups=groups,
-        description=text,
+        *described,
         source=source,
         line=line,
-        device_position=pos,
+        device_position=position,
         problem=problem or None,
         hides=tuple(hides),
     )

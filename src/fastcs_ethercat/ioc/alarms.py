@@ -62,24 +62,6 @@ class Status(IntEnum):
     WRITE_ACCESS = 21
 
 
-class PvaStatus(IntEnum):
-    """The coarser status of the PVA alarm_t structure."""
-
-    NO_ALARM = 0
-    DEVICE = 1
-    DRIVER = 2
-    RECORD = 3
-    DB = 4
-    CONF = 5
-    UNDEFINED = 6
-    CLIENT = 7
-
-
-def pva_status(status: Status) -> PvaStatus:
-    """The PVA status for a CA status, grouped as the IOC's QSRV groups them."""
-    return PvaStatus(fastcs_adapter.pva_status(int(status)))
-
-
 @dataclass(frozen=True)
 class AlarmState:
     """One alarm: severity, CA status and a text for PVA clients."""

@@ -61,13 +61,26 @@ def serve(
 
             write_screens(root, config.screens_dir, ca=config.transports.ca)
 
+    async def prepare() -> None:
+        from fastcs_ethercat.ioc.fastcs_adapter import ca_still_initialising
+
+        idle = ca_still_initialising if config.transports.ca else lambda: True
+        await root.prepare(idle)
+
     options = LaunchOptions(
         ca=config.transports.ca,
         pva=config.transports.pva,
         access_security_file=config.access_security_file,
         read_only=config.read_only,
     )
-    run(root, config.prefix, options, on_ready=ready, on_built=built)
+    run(
+        root,
+        config.prefix,
+        options,
+        on_ready=ready,
+        on_built=built,
+        on_pvs_built=prepare,
+    )
 
 
 def write_lists(root: RootController, config: IocConfig) -> None:

@@ -56,19 +56,20 @@ def _master(master: MasterPlan) -> dict[str, Any]:
 
 def _slave(terminal: TerminalPlan) -> dict[str, Any]:
     slave = terminal.slave
+    identity = slave.identity
     known = terminal.terminal_type is not None
     entry: dict[str, Any] = {
         "type": terminal.terminal_type
         or slave.type_name
-        or f"0x{slave.product_code:08x}",
+        or f"0x{identity.product_code:08x}",
         "name": slave.name,
-        "revision": HexInt(slave.revision, 8),
+        "revision": HexInt(identity.revision, 8),
     }
     if not known:  # the simulator plays it from its identity alone
-        entry["vendor_id"] = HexInt(slave.vendor_id, 8)
-        entry["product_code"] = HexInt(slave.product_code, 8)
-    if slave.serial:
-        entry["serial"] = slave.serial
+        entry["vendor_id"] = HexInt(identity.vendor_id, 8)
+        entry["product_code"] = HexInt(identity.product_code, 8)
+    if identity.serial_number:
+        entry["serial"] = identity.serial_number
     state = _al_state_name(slave.al_state)
     if state is not None and state != AlState.OP.name:
         entry["al_state"] = state

@@ -45,23 +45,35 @@ MAX_PASSWORD_FILE_BYTES: Final = 64 * 1024
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(
-        extra="forbid", frozen=True, use_attribute_docstrings=True
-    )
+    """Unknown keys are errors. Fields are described with `Field(description=)`:
+    pydantic finds attribute docstrings by walking the frames of the import
+    and every module loaded (~30 ms at the IOC's start, for `ioc schema`)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
 
 
 class RouteConfig(_Strict):
     """Add a route for this host on the target before connecting (UDP 48899)."""
 
     user: str = "Administrator"
-    password_env: str | None = None
-    """Name of the environment variable that holds the password."""
-    password_file: Path | None = None
-    """File whose first line is the password (relative: to the config file)."""
-    route_name: str | None = None
-    """Name of the route on the target; default: this host's name."""
-    host_address: str | None = None
-    """Address the target uses to reach this host; default: its own guess."""
+    password_env: str | None = Field(
+        default=None,
+        description="Name of the environment variable that holds the password.",
+    )
+    password_file: Path | None = Field(
+        default=None,
+        description="File whose first line is the password (relative: to the "
+        "config file).",
+    )
+    route_name: str | None = Field(
+        default=None,
+        description="Name of the route on the target; default: this host's name.",
+    )
+    host_address: str | None = Field(
+        default=None,
+        description="Address the target uses to reach this host; default: its "
+        "own guess.",
+    )
 
     @model_validator(mode="after")
     def _one_password_source(self) -> RouteConfig:
@@ -112,58 +124,96 @@ class TerminalConfig(_Strict):
 class IocConfig(_Strict):
     """Everything one IOC instance needs to know."""
 
-    prefix: str
-    """PV prefix (at most 22 characters): every PV is
-    <prefix>:<master>:<coupler>:<terminal>[:<channel>]:<name>."""
-    target: str
-    """TwinCAT host (or the simulator), `host` or `host:port` (ADS TCP)."""
-    ams_net_id: str | None = None
-    """AMS NetId of the target; discovered over UDP 48899 when not given."""
-    local_net_id: str | None = None
-    """AMS NetId of this host; pyads derives one from the local IP when unset."""
-    route: RouteConfig | None = None
-    """Add a route for this host on the target before connecting."""
-    poll_rate_hz: float = Field(default=DEFAULT_POLL_RATE_HZ, gt=0, le=MAX_POLL_RATE_HZ)
-    """Sum-read rate of every master (Hz)."""
-    ads_timeout_ms: int = Field(default=1000, ge=50, le=60_000)
-    """Timeout of every ADS request of the IOC (a slow or distant PLC may need
-    more; a request that times out fails its poll cycle or write)."""
-    terminals: dict[str, TerminalConfig] = Field(default_factory=dict)
-    """Per-terminal settings by TwinCAT name or path (names joined with ^)."""
-    terminal_dirs: tuple[Path, ...] = Field(
-        default_factory=lambda: (BUILTIN_TERMINALS_DIR,)
+    prefix: str = Field(
+        description="PV prefix (at most 22 characters): every PV is "
+        "<prefix>:<master>:<coupler>:<terminal>[:<channel>]:<name>."
     )
-    """Directories, files or globs of terminal YAML, searched in this order;
-    relative to this file. Default: the terminal types shipped with
-    fastcs-ethercat (a list given here replaces them)."""
-    deadbands: dict[str, Annotated[float, Field(ge=0)]] = Field(default_factory=dict)
-    """Absolute deadbands, like a record's MDEL: TwinCAT symbol name pattern
-    (glob, e.g. `*(EL3104).AI Standard Channel *.Value`) -> the change, in
-    the symbol's units, a number must exceed to be posted again; the first
-    matching pattern wins."""
-    pv_aliases: dict[str, str] = Field(default_factory=dict)
-    """Pin a PV segment: TwinCAT path (names joined with ^) -> PascalCase,
-    different from every other name of the same controller."""
-    transports: TransportsConfig = TransportsConfig()
-    """Which EPICS protocols to serve."""
-    chain: Path | None = None
-    """A chain file (the simulator's format, e.g. from `fastcs-ethercat chain
-    dump`; relative to this file) to serve from while the target does not
-    answer at start; without it, the chain this target showed last (kept
-    under $XDG_CACHE_HOME/fastcs-ethercat/chains). `ioc --list-pvs` lists
-    it without contacting the target."""
-    pv_lists_dir: Path | None = None
-    """Where to write, at every start, the Archiver Appliance list
-    (`archiver.json`) and the autosave request file (`autosave.req`) of the
-    PVs served (relative to this file); none when unset."""
-    screens_dir: Path | None = None
-    """Where to write Phoebus .bob screens of the chain (relative to this
-    file; in the image /epics/opi); none when unset."""
-    read_only: bool = False
-    """Serve outputs (RxPDO symbols, CoE objects) read-only."""
-    access_security_file: Path | None = None
-    """EPICS access security (ACF) for CA: who may write outputs (ASG
-    `OUTPUTS`) and CoE parameters (ASG `COE`); see ioc/access-example.acf."""
+    target: str = Field(
+        description="TwinCAT host (or the simulator), `host` or `host:port` (ADS TCP)."
+    )
+    ams_net_id: str | None = Field(
+        default=None,
+        description="AMS NetId of the target; discovered over UDP 48899 when "
+        "not given.",
+    )
+    local_net_id: str | None = Field(
+        default=None,
+        description="AMS NetId of this host; pyads derives one from the local "
+        "IP when unset.",
+    )
+    route: RouteConfig | None = Field(
+        default=None,
+        description="Add a route for this host on the target before connecting.",
+    )
+    poll_rate_hz: float = Field(
+        default=DEFAULT_POLL_RATE_HZ,
+        gt=0,
+        le=MAX_POLL_RATE_HZ,
+        description="Sum-read rate of every master (Hz).",
+    )
+    ads_timeout_ms: int = Field(
+        default=1000,
+        ge=50,
+        le=60_000,
+        description="Timeout of every ADS request of the IOC (a slow or distant "
+        "PLC may need more; a request that times out fails its poll cycle or "
+        "write).",
+    )
+    terminals: dict[str, TerminalConfig] = Field(
+        default_factory=dict,
+        description="Per-terminal settings by TwinCAT name or path (names "
+        "joined with ^).",
+    )
+    terminal_dirs: tuple[Path, ...] = Field(
+        default_factory=lambda: (BUILTIN_TERMINALS_DIR,),
+        description="Directories, files or globs of terminal YAML, searched in "
+        "this order; relative to this file. Default: the terminal types shipped "
+        "with fastcs-ethercat (a list given here replaces them).",
+    )
+    deadbands: dict[str, Annotated[float, Field(ge=0)]] = Field(
+        default_factory=dict,
+        description="Absolute deadbands, like a record's MDEL: TwinCAT symbol "
+        "name pattern (glob, e.g. `*(EL3104).AI Standard Channel *.Value`) -> "
+        "the change, in the symbol's units, a number must exceed to be posted "
+        "again; the first matching pattern wins.",
+    )
+    pv_aliases: dict[str, str] = Field(
+        default_factory=dict,
+        description="Pin a PV segment: TwinCAT path (names joined with ^) -> "
+        "PascalCase, different from every other name of the same controller.",
+    )
+    transports: TransportsConfig = Field(
+        default=TransportsConfig(), description="Which EPICS protocols to serve."
+    )
+    chain: Path | None = Field(
+        default=None,
+        description="A chain file (the simulator's format, e.g. from "
+        "`fastcs-ethercat chain dump`; relative to this file) to serve from "
+        "while the target does not answer at start; without it, the chain this "
+        "target showed last (kept under $XDG_CACHE_HOME/fastcs-ethercat/chains). "
+        "`ioc --list-pvs` lists it without contacting the target.",
+    )
+    pv_lists_dir: Path | None = Field(
+        default=None,
+        description="Where to write, at every start, the Archiver Appliance list "
+        "(`archiver.json`) and the autosave request file (`autosave.req`) of the "
+        "PVs served (relative to this file); none when unset.",
+    )
+    screens_dir: Path | None = Field(
+        default=None,
+        description="Where to write Phoebus .bob screens of the chain (relative "
+        "to this file; in the image /epics/opi); none when unset.",
+    )
+    read_only: bool = Field(
+        default=False,
+        description="Serve outputs (RxPDO symbols, CoE objects) read-only.",
+    )
+    access_security_file: Path | None = Field(
+        default=None,
+        description="EPICS access security (ACF) for CA: who may write outputs "
+        "(ASG `OUTPUTS`) and CoE parameters (ASG `COE`); see "
+        "ioc/access-example.acf.",
+    )
 
     @field_validator("prefix")
     @classmethod

@@ -128,10 +128,7 @@ async def read_slaves(
             SlaveInfo(
                 address=address,
                 name=name,
-                vendor_id=identity.vendor_id,
-                product_code=identity.product_code,
-                revision=identity.revision,
-                serial=identity.serial_number,
+                identity=identity,
                 coupler=None if starts_segment else coupler,
                 position=position,
                 type_name=type_name,

@@ -13,15 +13,17 @@ builds the transports itself and runs `FastCS` directly:
 
 softioc can initialise only once per process, so an IOC (and every test of
 one) lives in its own process. `on_built` runs once the tree is built,
-before anything serves (the screens are written there: `ioc.screens`); the
-ready line goes to stdout once both transports serve, so a parent process
-knows when to look for PVs (and screens).
+before anything serves (the screens are written there: `ioc.screens`);
+`on_pvs_built` once every CA record and PVA PV exists, while EPICS's iocInit
+sleeps (work done there costs the start nothing); the ready line goes to
+stdout once both transports serve, so a parent process knows when to look
+for PVs (and screens).
 """
 
 from __future__ import annotations
 
 import asyncio
-from collections.abc import Callable, Mapping
+from collections.abc import Awaitable, Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Final
@@ -89,6 +91,7 @@ def build_fastcs(
     *,
     on_ready: Callable[[], object] | None = None,
     on_built: Callable[[], object] | None = None,
+    on_pvs_built: Callable[[], Awaitable[object]] | None = None,
 ) -> FastCS:
     """A `FastCS` serving `root` under `prefix`; prints the ready line when up.
 
@@ -104,7 +107,9 @@ def build_fastcs(
 
         fastcs_adapter.set_callback_queue_size(options.callback_queue_size)
         fastcs_adapter.install_field_memo()  # one record per CA PV: fields once
-    transports = [*build_transports(options), _Announce(prefix, on_ready, on_built)]
+        fastcs_adapter.install_quick_quoting()
+    announce = _Announce(prefix, on_ready, on_built, on_pvs_built)
+    transports = [*build_transports(options), announce]
     return FastCS(root, transports, loop)
 
 
@@ -115,6 +120,7 @@ def run(
     *,
     on_ready: Callable[[], object] | None = None,
     on_built: Callable[[], object] | None = None,
+    on_pvs_built: Callable[[], Awaitable[object]] | None = None,
 ) -> None:
     """Serve until SIGINT or SIGTERM, as this process's one IOC.
 
@@ -126,15 +132,21 @@ def run(
     asyncio.set_event_loop(loop)
     try:
         build_fastcs(
-            root, prefix, options, loop, on_ready=on_ready, on_built=on_built
+            root,
+            prefix,
+            options,
+            loop,
+            on_ready=on_ready,
+            on_built=on_built,
+            on_pvs_built=on_pvs_built,
         ).run(interactive=False)
     finally:
         loop.close()
 
 
 class _Announce(Transport):
-    """Runs `on_built` once the tree is built and prints the ready line once
-    the real transports serve.
+    """Runs `on_built` once the tree is built, `on_pvs_built` once its PVs
+    exist and prints the ready line once the real transports serve.
 
     FastCS connects every transport after the root's `initialise()`, then
     gathers their `serve()` in order: CA starts iocInit in a worker thread
@@ -148,10 +160,12 @@ class _Announce(Transport):
         prefix: str,
         on_ready: Callable[[], object] | None,
         on_built: Callable[[], object] | None = None,
+        on_pvs_built: Callable[[], Awaitable[object]] | None = None,
     ) -> None:
         self.prefix = prefix
         self.on_ready = on_ready
         self.on_built = on_built
+        self.on_pvs_built = on_pvs_built
 
     def connect(
         self, controller_apis: list[ControllerAPI], loop: asyncio.AbstractEventLoop
@@ -161,8 +175,11 @@ class _Announce(Transport):
             self.on_built()
 
     async def serve(self) -> None:
-        from fastcs_ethercat.ioc.fastcs_adapter import ca_initialised
+        from fastcs_ethercat.ioc.fastcs_adapter import ca_initialised, pvs_built
 
+        if self.on_pvs_built is not None:
+            await pvs_built()
+            await self.on_pvs_built()
         await ca_initialised()
         for _ in range(3):
             await asyncio.sleep(0)

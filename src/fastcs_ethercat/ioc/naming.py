@@ -293,10 +293,13 @@ def coe_request(path: tuple[Node, ...], leaf: str, coe: CoePoint) -> PvRequest:
     return PvRequest((*path, coe_node(coe.index)), leaf, names, coe.writable)
 
 
+@lru_cache(maxsize=65536)
 def value_names(symbol: str, entry_name: str, channel: int | None) -> tuple[str, ...]:
     """Readable names of a value, shortest first: its entry without a leading
     group (`Underrange`), its entry (`Status.Underrange`), its symbol; each
-    without the channel's own words (`Channel 1`, `Ch1`)."""
+    without the channel's own words (`Channel 1`, `Ch1`).
+
+    Cached: every terminal of a type repeats the same points."""
     wanted: list[str] = []
     if entry_name:
         first, dot, rest = entry_name.partition(".")

@@ -14,6 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from enum import Enum
 
+from fastcs_ethercat.ads.ethercat import SlaveIdentity
 from fastcs_ethercat.terminals.meaning import Scaling
 
 
@@ -27,15 +28,27 @@ class PointKind(Enum):
 
 
 @dataclass(frozen=True, slots=True)
+class Source:
+    """The live symbol whose value holds a point's bytes, as the live table
+    described it at discovery: a handle per source is read each cycle, and
+    not used when its symbol now has another type or size (it would misread
+    the bytes)."""
+
+    name: str
+    offset: int = 0  # byte of the point's bytes within the source's value
+    type_name: str = ""  # "" / 0: the point's own type and size
+    size: int = 0
+
+
+@dataclass(frozen=True, slots=True)
 class Point:
     """One value the IOC serves: a TwinCAT symbol or one member of it.
 
     The IOC reads and writes by symbol handle, never by address: an online
     change then makes a request fail (0x711) instead of touching other
-    bytes. `source` is the live symbol whose value holds the point's bytes
-    (a handle per source is read each cycle), at `source_offset` within it;
-    `symbol` itself is what a write's handle names (a member reaches its own
-    bytes, a bit member its own bit). A bit symbol of the bit-addressed image
+    bytes. `source` is where a read finds the point's bytes; `symbol` itself
+    is what a write's handle names (a member reaches its own bytes, a bit
+    member its own bit). A bit symbol of the bit-addressed image
     reads by handle as one byte, its value in bit 0.
 
     `index_group`/`index_offset` are where the live table put the point at
@@ -64,21 +77,25 @@ class Point:
     entry_name: str = ""
     """The ESI entry it reads within its symbol (`Status.Underrange`, `Value`):
     its PV name; "" names it by its symbol."""
-    source: str = ""  # the live symbol holding the bytes; "" = `symbol` itself
-    source_offset: int = 0  # byte of the point's bytes within the source's value
-    source_type: str = ""  # the source's type and size in the live table at
-    source_size: int = 0  # discovery ("" / 0: the point's own)
+    source: Source | None = None  # None: `symbol` itself, from its first byte
 
     @property
     def source_name(self) -> str:
         """The symbol a read handle is taken for."""
-        return self.source or self.symbol
+        return self.symbol if self.source is None else self.source.name
+
+    @property
+    def source_offset(self) -> int:
+        """Byte of the point's bytes within its source's value."""
+        return 0 if self.source is None else self.source.offset
 
     @property
     def source_shape(self) -> tuple[str, int]:
-        """(type, size) the source had at discovery: a handle whose symbol
-        now has another is not used (it would misread the bytes)."""
-        return (self.source_type or self.type_name, self.source_size or self.byte_size)
+        """(type, size) the source had at discovery."""
+        source = self.source
+        if source is None:
+            return (self.type_name, self.byte_size)
+        return (source.type_name or self.type_name, source.size or self.byte_size)
 
 
 @dataclass(frozen=True, slots=True)
@@ -107,10 +124,7 @@ class SlaveInfo:
 
     address: int  # EtherCAT address, 1001, 1002, ...
     name: str  # TwinCAT name, "Term 5 (EL3104)"
-    vendor_id: int
-    product_code: int
-    revision: int
-    serial: int = 0
+    identity: SlaveIdentity  # vendor, product code, revision, serial (0x1018)
     coupler: str | None = None  # TwinCAT name of the coupler it hangs off
     position: int = 0  # bus order, 0-based
     type_name: str = ""  # TwinCAT's type of the slave (master CoE 0x8000+n:02)

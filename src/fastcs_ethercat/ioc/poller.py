@@ -45,15 +45,13 @@ class PollStats:
 
     cycles: int = 0
     requests: int = 0
-    requests_per_cycle: int = 0
-    items_per_cycle: int = 0
-    points: int = 0
     changes: int = 0
     errors: int = 0
     """Cycles whose read failed as a whole."""
     item_errors: int = 0
     """Point errors reported (per point per cycle)."""
     overruns: int = 0
+    """Ticks skipped because a cycle ran past them (skipped, not queued)."""
     last_cycle_s: float = 0.0
     max_cycle_s: float = 0.0
     total_cycle_s: float = 0.0
@@ -83,11 +81,7 @@ class Poller:
         self.on_errors = on_errors
         self.chunk_size = chunk_size
         self.layout = PollLayout.build(points, handles, chunk_size)
-        self.stats = PollStats(
-            requests_per_cycle=len(self.layout.chunks),
-            items_per_cycle=self.layout.item_count,
-            points=len(points),
-        )
+        self.stats = PollStats()
         self._items = [item for chunk in self.layout.chunks for item in chunk.items]
         self._stop = asyncio.Event()
 

@@ -66,6 +66,19 @@ class Publisher:
         self.within_deadband = 0
         """New values not posted: within their deadband of the last posted."""
         self._routes: dict[int, _Route] = {}
+        self._prepared: dict[int, _Route] = {}
+        """Routes made ahead (`prepare`), taken at each attribute's first value."""
+
+    def prepare(self, attributes: Iterable[AttrR[Any, Any]]) -> None:
+        """Make the routes of `attributes` now (once their PVs exist, before
+        they serve), not at their first values: a first poll cycle of a rack
+        would otherwise make thousands while clients connect."""
+        freeze_new()  # the tree and its PVs, out of the collector's walks
+        prepared = self._prepared
+        for attribute in attributes:
+            if id(attribute) not in self._routes:
+                prepared[id(attribute)] = self._route(attribute)
+        freeze_new()  # routes live as long as the IOC
 
     def start(self) -> None:
         """The transports serve: post straight to their PVs from now on."""
@@ -103,9 +116,12 @@ class Publisher:
                     entry = routes.get(id(attribute))
                     if entry is None:  # first value: posted even if equal
                         validated = attribute.datatype.validate(value)
-                        entry = routes[id(attribute)] = self._route(attribute)
+                        entry = self._prepared.pop(id(attribute), None)
+                        if entry is None:
+                            entry = self._route(attribute)
+                            made += 1
+                        routes[id(attribute)] = entry
                         route, _, _, _, severity_of = entry
-                        made += 1
                     else:
                         route, validate, equal, band, severity_of = entry
                         validated = validate(value)

@@ -254,10 +254,7 @@ def chain_changes(old: SystemPlan, new: SystemPlan) -> list[str]:
 
     def slaves(plan: SystemPlan) -> dict[tuple[str, int], str]:
         return {
-            (m.name, t.slave.address): (
-                f"{t.slave.name} 0x{t.slave.vendor_id:X}/"
-                f"0x{t.slave.product_code:X}/0x{t.slave.revision:X}"
-            )
+            (m.name, t.slave.address): f"{t.slave.name} {t.slave.identity}"
             for m in plan.masters
             for t in m.terminals
         }

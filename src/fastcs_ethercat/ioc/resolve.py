@@ -15,6 +15,7 @@ import math
 from collections import defaultdict
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
+from typing import TypedDict, Unpack
 
 from fastcs_ethercat.ads.client import SymbolTables
 from fastcs_ethercat.ads.constants import IndexGroup
@@ -29,6 +30,7 @@ from fastcs_ethercat.ioc.plan import (
     Point,
     PointKind,
     SlaveInfo,
+    Source,
     TerminalPlan,
 )
 from fastcs_ethercat.logs import first_names
@@ -147,19 +149,26 @@ def _leaf(path: str, type_name: str, offset: int, size: int) -> _Member | None:
     return _Member(path, parsed.name, PointKind.SCALAR, offset, size or parsed.size)
 
 
+class _Meaning(TypedDict, total=False):
+    """What a point means beyond where its bytes are: `Point`'s fields of
+    the same names (their defaults where not given)."""
+
+    writable: bool
+    description: str
+    scaling: Scaling | None
+    severity: int
+    channel: int | None
+    entry_name: str
+
+
 def _point(
     master: str,
     entry: AdsSymbolEntry,
     member: _Member,
     attribute: str,
-    *,
-    writable: bool = False,
-    description: str = "",
-    scaling: Scaling | None = None,
-    severity: int = 0,
-    channel: int | None = None,
-    entry_name: str = "",
+    **meaning: Unpack[_Meaning],
 ) -> Point:
+    """The point of `member` of the live symbol `entry`."""
     symbol = f"{entry.name}.{member.path}" if member.path else entry.name
     return Point(
         key=f"{master}/{symbol}",
@@ -173,16 +182,8 @@ def _point(
         bit_offset=member.bit_offset,
         bit_size=member.bit_size,
         length=member.length,
-        writable=writable,
-        description=description,
-        scaling=scaling,
-        severity=severity,
-        channel=channel,
-        entry_name=entry_name,
-        source=entry.name,
-        source_offset=member.byte_offset,
-        source_type=entry.type_name,
-        source_size=entry.size,
+        **meaning,
+        source=Source(entry.name, member.byte_offset, entry.type_name, entry.size),
     )
 
 
@@ -304,14 +305,17 @@ def resolve_terminal(
     """One slave's plan: matched YAML (or generic) and its points."""
     if views is None:
         views = TypeViews()
-    match = registry.lookup(slave.product_code, slave.revision, slave.vendor_id)
+    identity = slave.identity
+    match = registry.lookup(
+        identity.product_code, identity.revision, identity.vendor_id
+    )
     if match is None:
         plan = TerminalPlan(slave=slave, terminal_type=None)
         plan.points = generic_points(master, entries, types, slave.type_name)
         if entries:
             plan.warnings.append(
                 f"{slave.name}: no terminal YAML for product code "
-                f"0x{slave.product_code:08x} revision 0x{slave.revision:08x}; "
+                f"0x{identity.product_code:08x} revision 0x{identity.revision:08x}; "
                 f"serving its {len(entries)} live symbols read-only"
             )
         return plan
@@ -364,7 +368,7 @@ def _match_warning(
     text = f"{slave.name}: "
     if not match.exact:
         text += (
-            f"revision 0x{slave.revision:08x} has no YAML; served from "
+            f"revision 0x{slave.identity.revision:08x} has no YAML; served from "
             f"{match.type_name} revision 0x{match.revision:08x}"
         )
     if dropped:

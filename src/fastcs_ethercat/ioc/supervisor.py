@@ -116,8 +116,6 @@ class SupervisorStats:
 
     state: LinkState = LinkState.CONNECTED
     probes: int = 0
-    slow_probes: int = 0
-    """Probes that timed out while the target still sent other frames."""
     losses: int = 0
     reconnects: int = 0
     resyncs: int = 0
@@ -239,7 +237,6 @@ class Supervisor:
             if self._slow_since is None:
                 self._slow_since = sent
             if time.monotonic() - self._slow_since <= self.slow_limit_s:
-                self.stats.slow_probes += 1
                 self._rare_log.warning(
                     "slow probe",
                     "target slow: no answer to a probe in %s s while other "

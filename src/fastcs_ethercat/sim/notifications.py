@@ -75,14 +75,19 @@ class Subscription:
     """The address the client registered with; notifications come from it."""
     client: AmsAddress
     """The client's NetId and port; notifications go to it."""
-    index_group: int
-    index_offset: int
-    length: int
+    request: AddDeviceNotificationRequest
+    """What it watches, in which mode, how often and how late at most."""
     on_change: bool
-    cycle_ns: int
-    max_delay_ns: int
     next_sample_ns: int
     last_data: bytes | None = None
+
+    @property
+    def cycle_ns(self) -> int:
+        return self.request.cycle_time * NANOSECONDS_PER_UNIT
+
+    @property
+    def max_delay_ns(self) -> int:
+        return self.request.max_delay * NANOSECONDS_PER_UNIT
 
 
 @dataclass(slots=True)
@@ -129,9 +134,7 @@ class NotificationRegistry:
             return AdsReturnCode.DEVICE_INVALID_WATCH_SIZE, 0
         if len(self._subscriptions) >= self._max_handles:
             return AdsReturnCode.DEVICE_NO_MORE_HANDLES, 0
-        result, value = self._read_value(
-            packet.target, request.index_group, request.index_offset, request.length
-        )
+        result, value = self._read(packet.target, request)
         if result != AdsReturnCode.NO_ERROR:
             return result, 0
         if len(value) < request.length:
@@ -140,18 +143,17 @@ class NotificationRegistry:
             return AdsReturnCode.DEVICE_INVALID_SIZE, 0
         handle = self._handles.allocate()
         self._subscriptions[handle] = Subscription(
-            handle=handle,
-            server=packet.target,
-            client=packet.source,
-            index_group=request.index_group,
-            index_offset=request.index_offset,
-            length=request.length,
-            on_change=on_change,
-            cycle_ns=request.cycle_time * NANOSECONDS_PER_UNIT,
-            max_delay_ns=request.max_delay * NANOSECONDS_PER_UNIT,
-            next_sample_ns=now_ns + 1,
+            handle, packet.target, packet.source, request, on_change, now_ns + 1
         )
         return AdsReturnCode.NO_ERROR, handle
+
+    def _read(
+        self, server: AmsAddress, watched: AddDeviceNotificationRequest
+    ) -> tuple[int, bytes]:
+        """(result, value) of what a registration watches, read now."""
+        return self._read_value(
+            server, watched.index_group, watched.index_offset, watched.length
+        )
 
     def delete(self, packet: AmsPacket, handle: int) -> int:
         """Unregister a handle this connection owns at the address asked."""
@@ -188,9 +190,7 @@ class NotificationRegistry:
             sub.next_sample_ns = (
                 following if following > now_ns else now_ns + sub.cycle_ns
             )
-            result, data = self._read_value(
-                sub.server, sub.index_group, sub.index_offset, sub.length
-            )
+            result, data = self._read(sub.server, sub.request)
             if result != AdsReturnCode.NO_ERROR:
                 continue
             if sub.on_change and data == sub.last_data:

@@ -16,18 +16,19 @@ its scan.
 
 from __future__ import annotations
 
+import asyncio
 import logging
 import time
 from collections.abc import Callable, Collection, Sequence
 from dataclasses import dataclass
-from typing import Any, Final
+from typing import Any, Final, NamedTuple
 
 from fastcs.attributes import AttrR
 from fastcs.controllers import Controller
 from fastcs.datatypes import Int, String
 from fastcs.methods import scan
 
-from fastcs_ethercat import __version__
+from fastcs_ethercat import __version__, collector
 from fastcs_ethercat.ioc.alarms import Status
 from fastcs_ethercat.ioc.boot import PlanSource
 from fastcs_ethercat.ioc.chains import remember
@@ -41,6 +42,7 @@ from fastcs_ethercat.ioc.controllers.tree import (
     build_masters,
     pv_entries,
     pv_requests,
+    requests_by_terminal,
     slave_path,
 )
 from fastcs_ethercat.ioc.datatypes import AlarmBool, ExactFloat, alarm_enum
@@ -64,6 +66,8 @@ from fastcs_ethercat.terminals.registry import TerminalRegistry
 logger = logging.getLogger(__name__)
 
 STATS_PERIOD_S: Final = 1.0
+PREPARED_AT_ONCE: Final = 200
+"""Routes made between two looks at whether EPICS still sleeps (~10 ms)."""
 WARNINGS_SHOWN: Final = 15
 """Start-up warnings logged before one line says how many more there are."""
 PROCESS_LEAVES: Final = (
@@ -108,28 +112,35 @@ ROOT_LEAVES: Final = (
 )
 
 
+class Totals(NamedTuple):
+    """The pollers' poll cycles and ADS requests and the publisher's posts
+    so far, at one moment (time.monotonic())."""
+
+    time: float
+    cycles: int
+    requests: int
+    posts: int
+
+
 @dataclass
 class RateTracker:
-    """Turns the pollers' running totals into per-second rates."""
+    """Turns the running totals into per-second rates."""
 
-    last_time: float = 0.0
-    last_cycles: int = 0
-    last_requests: int = 0
-    last_posts: int = 0
+    last: Totals | None = None
     cycles_per_second: float = 0.0
     requests_per_second: float = 0.0
     posts_per_second: float = 0.0
 
-    def update(self, now: float, cycles: int, requests: int, posts: int = 0) -> None:
-        elapsed = now - self.last_time
-        restarted = cycles < self.last_cycles or requests < self.last_requests
-        if self.last_time and elapsed > 0 and not restarted:  # new pollers: skip
-            self.cycles_per_second = (cycles - self.last_cycles) / elapsed
-            self.requests_per_second = (requests - self.last_requests) / elapsed
-        if self.last_time and elapsed > 0:
-            self.posts_per_second = (posts - self.last_posts) / elapsed
-        self.last_time, self.last_cycles, self.last_requests = now, cycles, requests
-        self.last_posts = posts
+    def update(self, now: Totals) -> None:
+        last, self.last = self.last, now
+        if last is None or now.time <= last.time:
+            return
+        elapsed = now.time - last.time
+        restarted = now.cycles < last.cycles or now.requests < last.requests
+        if not restarted:  # new pollers (a reconnect): skip
+            self.cycles_per_second = (now.cycles - last.cycles) / elapsed
+            self.requests_per_second = (now.requests - last.requests) / elapsed
+        self.posts_per_second = (now.posts - last.posts) / elapsed
 
 
 class RootController(Controller):
@@ -182,6 +193,7 @@ class RootController(Controller):
             return
         plan, connection = await self.plan_source()
         started = time.monotonic()
+        collector.pause()  # a burst of objects that live on, until `start`
         self.build(plan, connection)
         logger.info(
             "%d PVs planned in %.1f s; creating their records",
@@ -203,8 +215,11 @@ class RootController(Controller):
         """The attributes of the root and every controller below, for `plan`."""
         config = self.config
         self._plan = plan
+        by_terminal = requests_by_terminal(plan)
         self._names = names = plan_pv_names(
-            config.prefix, pv_requests(plan, ROOT_LEAVES), config.pv_aliases
+            config.prefix,
+            pv_requests(plan, ROOT_LEAVES, by_terminal),
+            config.pv_aliases,
         )
         for shortening in names.shortened:  # thousands with every CoE object
             logger.debug("PV name shortened: %s", shortening)
@@ -212,7 +227,13 @@ class RootController(Controller):
         for leaf, attr in self.attrs.items():
             self.add_attribute(names.leaves[PvRequest((), leaf)], attr)
         self.masters = build_masters(
-            self, plan, names, connection, self.health, read_only=config.read_only
+            self,
+            plan,
+            names,
+            connection,
+            self.health,
+            read_only=config.read_only,
+            by_terminal=by_terminal,
         )
         self._reconnection = Reconnection(self, connection, plan, self.registry)
         self.use_plan(plan)
@@ -301,6 +322,26 @@ class RootController(Controller):
 
     # -- serving -------------------------------------------------------------------
 
+    async def prepare(self, idle: Callable[[], bool]) -> None:
+        """Every PV exists, none serves yet (EPICS's iocInit sleeps): where
+        each value from the target will go is worked out now, not at its
+        first poll, a slice at a time while `idle()` (what is left is done at
+        the first values, as the IOC must serve as soon as EPICS does).
+        Never raises: what fails here is done at the first value."""
+        attributes = self.target_attributes()
+        for first in range(0, len(attributes), PREPARED_AT_ONCE):
+            if not idle():
+                logger.debug("routes prepared: %d of %d", first, len(attributes))
+                return
+            try:
+                self.health.publisher.prepare(
+                    attributes[first : first + PREPARED_AT_ONCE]
+                )
+            except Exception:
+                logger.debug("routes not prepared", exc_info=True)
+                return
+            await asyncio.sleep(0)  # iocInit may have returned meanwhile
+
     def start(self) -> None:
         """The transports serve: poll, supervise, read the CoE values.
 
@@ -357,10 +398,12 @@ class RootController(Controller):
     async def _post_stats(self) -> None:
         stats = [s for master in self.masters for s in master.poll_stats()]
         self.rates.update(
-            time.monotonic(),
-            sum(s.cycles for s in stats),
-            sum(s.requests for s in stats),
-            self.health.publisher.posted,
+            Totals(
+                time.monotonic(),
+                sum(s.cycles for s in stats),
+                sum(s.requests for s in stats),
+                self.health.publisher.posted,
+            )
         )
         link = self.reconnection.supervisor.stats
         connected = self.reconnection.connection.connected

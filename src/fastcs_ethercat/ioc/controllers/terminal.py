@@ -306,7 +306,5 @@ class GenericTerminalController(TerminalController):
 
 def _describe(plan: TerminalPlan) -> str:
     slave = plan.slave
-    kind = plan.terminal_type or (
-        f"unknown 0x{slave.vendor_id:X}/0x{slave.product_code:X}/0x{slave.revision:X}"
-    )
+    kind = plan.terminal_type or f"unknown {slave.identity}"
     return f"{slave.name}: {kind}"

@@ -112,14 +112,33 @@ def master_requests(master: MasterPlan) -> dict[str, PvRequest]:
     return {leaf: PvRequest(top, leaf) for leaf in leaves}
 
 
-def pv_requests(plan: SystemPlan, root_leaves: Sequence[str]) -> list[PvRequest]:
+TerminalRequests = dict[int, dict[str, PvRequest]]
+"""Each terminal's `terminal_requests`, by the id of its `TerminalPlan`."""
+
+
+def requests_by_terminal(plan: SystemPlan) -> TerminalRequests:
+    """Every terminal's requests, made once for a build: they name the PVs
+    (`pv_requests`) and place the attributes (`build_masters`)."""
+    return {
+        id(terminal): terminal_requests(slave_path(master, terminal), terminal)
+        for master in plan.masters
+        for terminal in master.terminals
+    }
+
+
+def pv_requests(
+    plan: SystemPlan,
+    root_leaves: Sequence[str],
+    by_terminal: TerminalRequests | None = None,
+) -> list[PvRequest]:
     """Every attribute of the tree, for `plan_pv_names`."""
+    if by_terminal is None:
+        by_terminal = requests_by_terminal(plan)
     requests = [PvRequest((), leaf) for leaf in root_leaves]
     for master in plan.masters:
         requests += master_requests(master).values()
         for terminal in master.terminals:
-            path = slave_path(master, terminal)
-            requests += terminal_requests(path, terminal).values()
+            requests += by_terminal[id(terminal)].values()
     return requests
 
 
@@ -131,8 +150,11 @@ def build_masters(
     health: Health,
     *,
     read_only: bool = False,
+    by_terminal: TerminalRequests | None = None,
 ) -> list[MasterController]:
     """A controller per master of `plan` under `root`, with every terminal."""
+    if by_terminal is None:
+        by_terminal = requests_by_terminal(plan)
     masters: list[MasterController] = []
     for master in plan.masters:
         top = (Node(NodeKind.MASTER, master.name),)
@@ -144,13 +166,16 @@ def build_masters(
             master, leaves, connection, health, read_only=read_only
         )
         root.add_sub_controller(names.controllers[top], controller)
-        _add_terminals(controller, names, read_only)
+        _add_terminals(controller, names, read_only, by_terminal)
         masters.append(controller)
     return masters
 
 
 def _add_terminals(
-    master_controller: MasterController, names: PvNames, read_only: bool
+    master_controller: MasterController,
+    names: PvNames,
+    read_only: bool,
+    by_terminal: TerminalRequests,
 ) -> None:
     master = master_controller.plan
     by_path: dict[tuple[Node, ...], BaseController] = {
@@ -172,7 +197,7 @@ def _add_terminals(
         )
         controller = kind(
             terminal,
-            _places(names, path, terminal_requests(path, terminal)),
+            _places(names, path, by_terminal[id(terminal)]),
             master_controller.point_io,
             _coe_io(master_controller.connection, master, terminal),
             read_only=read_only,

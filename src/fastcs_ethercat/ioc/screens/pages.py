@@ -14,7 +14,7 @@ from __future__ import annotations
 import xml.etree.ElementTree as ElementTree
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field, replace
-from enum import Enum
+from enum import Enum, auto
 from typing import Final
 
 from fastcs_ethercat.ioc.naming import RBV_SUFFIX
@@ -36,9 +36,9 @@ BUTTON_WIDTH: Final = 110
 class Show(Enum):
     """How a value is shown (and set, if it is a setpoint)."""
 
-    TEXT = "text"
-    BOOL = "bool"
-    ENUM = "enum"
+    TEXT = auto()
+    BOOL = auto()
+    ENUM = auto()
 
 
 @dataclass(frozen=True)
