@@ -58,8 +58,15 @@ def test_child_keys_are_cut_only_where_each_child_is_certain() -> None:
         "<E>1",
         "<E a='2'>2",
     ]
-    # an attribute's `>` is escaped when serialised; a sibling stays in the key
-    assert child_keys('<P a="1&gt;"><X/><E>1</E></P>', "E", 1) == ["<X/><E>1"]
+    # each key is its element's text (an attribute's `>` is escaped)
+    assert child_keys('<P a="1&gt;"><X/><E>1</E></P>', "E", 1) == ["<E>1"]
+    # elements deeper down are cut alike when they are the only ones
+    assert child_keys("<O><I><S>1</S><S>2</S></I></O>", "S", 2) == ["<S>1", "<S>2"]
+    # the parent may share the name's start
+    assert child_keys("<Es><E>1</E></Es>", "E", 1) == ["<E>1"]
     assert child_keys("<P><E><E>x</E></E></P>", "E", 1) is None  # nested
     assert child_keys("<P><E/><E>1</E></P>", "E", 2) is None  # empty child
     assert child_keys("<P><E>1</E></P>", "E", 2) is None  # count differs
+    assert child_keys("<P><EX/><E>1</E></P>", "E", 1) is None  # alike name
+    # an empty one elsewhere would shift which end closes which element
+    assert child_keys("<P><E/><X><E>x</E></X><E>1</E></P>", "E", 2) is None

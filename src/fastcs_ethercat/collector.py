@@ -24,13 +24,25 @@ cycle's short-lived tuples are gone."""
 
 @contextmanager
 def held() -> Iterator[None]:
-    """No collection within: for a bounded burst (one document's parse)."""
+    """No collection within: for a bounded burst (one document's parse).
+
+    What the burst built lives on (a parse result), so it goes straight to
+    the oldest generation (`gc.freeze` then `gc.unfreeze` moves every tracked
+    object there in O(1)), instead of being walked once more as young
+    objects by the collection the next allocation would start: 25 ms of a
+    full parse's 800, 60 ms when that is a middle-generation collection.
+    Cyclic garbage of the burst (it makes none) would wait for a full
+    collection. Not while anything is frozen: unfreezing would undo it.
+    """
     enabled = gc.isenabled()
     gc.disable()
     try:
         yield
     finally:
         if enabled:
+            if not gc.get_freeze_count():
+                gc.freeze()
+                gc.unfreeze()
             gc.enable()
 
 

@@ -18,18 +18,19 @@ from .model import (
     EsiDevice,
     EsiHideType,
     EsiPdo,
+    EsiPdoGroup,
     EsiSyncManager,
 )
 from .oversampling import derive_oversampling
 from .pdos import PDO_TAGS, parse_pdo
-from .xmltext import Element, fail, int_attr, int_of, text_of
+from .xmltext import Element, fail, first_at, int_attr, int_of, text_of
 
 ENGLISH = 1033
 
 
 def identity_of(device: Element) -> tuple[str, int, int]:
     """(type name, product code, revision) from `<Type>`; errors are placed."""
-    type_element = device.find("Type")
+    type_element = first_at(device, "Type")
     if type_element is None:
         raise fail(device, "<Device> has no <Type>")
     type_name = text_of(type_element)
@@ -101,6 +102,39 @@ def _dc_op_mode(element: Element) -> EsiDcOpMode:
     )
 
 
+def _dc_op_modes(element: Element, memo: ParseMemo | None) -> tuple[EsiDcOpMode, ...]:
+    """The `OpMode`s of a `<Dc>` (183 in the shared files, 36 distinct)."""
+    if memo is None:
+        return tuple(_dc_op_mode(mode) for mode in element.iterchildren("OpMode"))
+    key = element_key(element)
+    modes = memo.dc_op_modes.get(key)
+    if modes is None:
+        modes = tuple(_dc_op_mode(mode) for mode in element.iterchildren("OpMode"))
+        memo.dc_op_modes[key] = modes
+    return modes
+
+
+def _groups(
+    twincat: Element | None,
+    pdos: list[EsiPdo],
+    sync_managers: list[EsiSyncManager],
+    memo: ParseMemo | None,
+) -> tuple[EsiPdoGroup, ...]:
+    """`derive_groups`, once per memo for the same `TwinCAT` text, PDOs
+    (shared objects of the memo, so their identities) and sync managers."""
+    if memo is None:
+        return derive_groups(twincat, pdos, sync_managers)
+    key = (
+        "" if twincat is None else element_key(twincat),
+        tuple(map(id, pdos)),
+        tuple(sync_managers),
+    )
+    groups = memo.groups.get(key)
+    if groups is None:
+        groups = memo.groups[key] = derive_groups(twincat, pdos, sync_managers)
+    return groups
+
+
 def parse_device(
     device: Element, *, vendor_id: int, source: str, memo: ParseMemo | None = None
 ) -> EsiDevice:
@@ -131,7 +165,7 @@ def parse_device(
                 key = element_key(child)
                 pdo = memo.pdos.get(key)
                 if pdo is None:
-                    pdo = memo.pdos[key] = parse_pdo(child, direction)
+                    pdo = memo.pdos[key] = parse_pdo(child, direction, memo, key)
             (tx_pdos if direction == "tx" else rx_pdos).append(pdo)
         elif tag == "Name":
             name_of(child, names)
@@ -149,20 +183,18 @@ def parse_device(
                 )
             )
         elif tag == "Info":
-            twincat = child.find("VendorSpecific/TwinCAT")
+            twincat = first_at(child, "VendorSpecific", "TwinCAT")
         elif tag == "Mailbox":
             has_mailbox = True
-            has_coe = child.find("CoE") is not None
+            has_coe = first_at(child, "CoE") is not None
         elif tag == "Dc":
-            dc_op_modes.extend(
-                _dc_op_mode(mode) for mode in child if mode.tag == "OpMode"
-            )
+            dc_op_modes.extend(_dc_op_modes(child, memo))
         elif tag == "Profile":
-            dictionary = child.find("Dictionary")
+            dictionary = first_at(child, "Dictionary")
             if dictionary is not None:
                 data_types, coe_objects = parse_dictionary(dictionary, memo)
     pdos = tx_pdos + rx_pdos
-    groups = derive_groups(twincat, pdos, sync_managers)
+    groups = _groups(twincat, pdos, sync_managers, memo)
     default_group = next((g.name for g in groups if g.is_default), None)
     return EsiDevice(
         type_name=type_name,

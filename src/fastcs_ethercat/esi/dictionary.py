@@ -16,7 +16,7 @@ from __future__ import annotations
 import re
 from typing import NamedTuple
 
-from .memo import ParseMemo, child_keys, element_key
+from .memo import ParseMemo, child_keys, element_key, shared
 from .model import (
     Access,
     EsiCoeObject,
@@ -24,6 +24,7 @@ from .model import (
     EsiDataType,
     EsiDataTypeSubItem,
     EsiEnumItem,
+    new_record,
 )
 from .xmltext import NUMBERS, Element, EsiFormatError, fail, int_of, text_of
 
@@ -88,8 +89,9 @@ def _data_type_sub_item(element: Element, owner: str) -> EsiDataTypeSubItem:
             access, pdo_mapping, _ = _flags(child)
     if not type_name:
         raise fail(element, f"sub-item {name!r} of data type {owner} has no <Type>")
-    return EsiDataTypeSubItem(
-        subindex, name, type_name, bit_size, bit_offset, access, pdo_mapping
+    return new_record(
+        EsiDataTypeSubItem,
+        (subindex, name, type_name, bit_size, bit_offset, access, pdo_mapping),
     )
 
 
@@ -154,30 +156,38 @@ def parse_data_types(
     """`<DataTypes>` -> name -> type, checking that every reference resolves.
 
     With a `memo` and the element's `key`, each type is parsed once."""
-    children = [child for child in element if child.tag == "DataType"]
-    keys = child_keys(key, "DataType", len(children)) if memo and key else None
+    children = list(element.iterchildren("DataType"))
+    known = memo.data_type if memo and key else None
+    parsed = shared(parse_data_type, children, "DataType", key, known)
     types: dict[str, EsiDataType] = {}
-    lines: dict[str, int | None] = {}
-    for position, child in enumerate(children):
-        if keys is None or memo is None:
-            data_type = parse_data_type(child)
-        else:
-            data_type = memo.data_type.get(keys[position])
-            if data_type is None:
-                data_type = memo.data_type[keys[position]] = parse_data_type(child)
+    for data_type in parsed:
         types.setdefault(data_type.name, data_type)
-        lines.setdefault(data_type.name, child.sourceline)
     for data_type in types.values():
-        referenced = [sub.type_name for sub in data_type.sub_items]
-        if data_type.base_type:
-            referenced.append(data_type.base_type)
-        for name in referenced:
-            if name not in types and not is_base_type(name):
-                raise EsiFormatError(
-                    f"data type {data_type.name} uses unknown data type {name!r}",
-                    lines[data_type.name],
-                )
+        for sub in data_type.sub_items:
+            if sub.type_name not in types and not is_base_type(sub.type_name):
+                raise _unknown_type(data_type, sub.type_name, children, parsed)
+        base = data_type.base_type
+        if base and base not in types and not is_base_type(base):
+            raise _unknown_type(data_type, base, children, parsed)
     return types
+
+
+def _unknown_type(
+    data_type: EsiDataType,
+    name: str,
+    children: list[Element],
+    parsed: list[EsiDataType],
+) -> EsiFormatError:
+    """The error for a reference to an undefined type, placed at the first
+    definition of `data_type` (the one `parse_data_types` keeps)."""
+    line = next(
+        child.sourceline
+        for child, found in zip(children, parsed, strict=True)
+        if found.name == data_type.name
+    )
+    return EsiFormatError(
+        f"data type {data_type.name} uses unknown data type {name!r}", line
+    )
 
 
 Defaults = list[str | None]
@@ -309,8 +319,57 @@ class ObjectFacts(NamedTuple):
     """`Info/SubItem` defaults by sub-item name (the first of a name wins)."""
 
 
-def read_object(element: Element) -> ObjectFacts:
-    """The facts of one `<Object>`; errors are placed."""
+def _sub_item_defaults(element: Element) -> tuple[str, Defaults]:
+    """Name and defaults of an object's `Info/SubItem`."""
+    name = ""
+    defaults = _NO_DEFAULTS
+    for part in element:
+        tag = part.tag
+        if tag == "Name":
+            text = part.text
+            name = text.strip() if text else ""
+        elif tag == "Info":
+            defaults = _defaults(part)
+    return name, defaults
+
+
+def read_object(
+    element: Element, memo: ParseMemo | None = None, key: str = ""
+) -> ObjectFacts:
+    """The facts of one `<Object>`; errors are placed. With a `memo` and the
+    element's `key`, objects that differ only in their leading Index and
+    Name (one per channel: #x6000, #x6010, ...) are read once, and each
+    distinct `Info/SubItem` too."""
+    rest = _after_index_and_name(element, key) if memo is not None else None
+    if rest is None or memo is None:
+        return _read_object(element, memo, key)
+    name = text_of(element[1])
+    shape = memo.object_rests.get(rest) if name else None
+    if shape is not None:
+        index = int_of(element[0], "object Index")
+        return new_record(ObjectFacts, (index, name, *shape[2:]))
+    facts = _read_object(element, memo, key)
+    if name:
+        memo.object_rests[rest] = facts
+    return facts
+
+
+def _after_index_and_name(element: Element, key: str) -> str | None:
+    """The text (`key`) of an object after its first two children when they
+    are a leaf `<Index>` and a leaf `<Name>`, and no other `<Index>` follows
+    (it would win): all of its facts but those two. None otherwise."""
+    if not key or len(element) < 2:
+        return None
+    index, name = element[0], element[1]
+    if index.tag != "Index" or name.tag != "Name" or len(index) or len(name):
+        return None
+    rest = key[key.find("</Name>") + len("</Name>") :]
+    return None if "<Index" in rest else rest
+
+
+def _read_object(element: Element, memo: ParseMemo | None, key: str) -> ObjectFacts:
+    """`read_object` without the shortcut for objects alike but for their
+    Index and Name."""
     index: int | None = None
     name = ""
     type_name: str | None = None
@@ -341,22 +400,17 @@ def read_object(element: Element) -> ObjectFacts:
     default_data: str | None = None
     by_name: dict[str, Defaults] = {}
     if info is not None:
-        for child in info:
-            tag = child.tag
-            if tag == "SubItem":
-                sub_name = ""
-                defaults = _NO_DEFAULTS
-                for part in child:
-                    part_tag = part.tag
-                    if part_tag == "Name":
-                        text = part.text
-                        sub_name = text.strip() if text else ""
-                    elif part_tag == "Info":
-                        defaults = _defaults(part)
-                if sub_name not in by_name:
-                    by_name[sub_name] = defaults
-            elif tag == "DefaultData":
+        sub_items: list[Element] = []
+        for child in info:  # one loop: a tag filter costs more to set up
+            if child.tag == "SubItem":
+                sub_items.append(child)
+            elif child.tag == "DefaultData":
                 default_data = text_of(child) or None
+        known = memo.sub_item_defaults if memo else None
+        parsed = shared(_sub_item_defaults, sub_items, "SubItem", key, known)
+        for sub_name, defaults in parsed:
+            if sub_name not in by_name:
+                by_name[sub_name] = defaults
     return ObjectFacts(
         index,
         name,
@@ -390,24 +444,24 @@ def resolve_object(
     facts: ObjectFacts, data_type: EsiDataType | None, rows: Rows
 ) -> EsiCoeObject:
     """The object with its sub-items resolved through its data type."""
-    index, name, type_name = facts.object_index, facts.name, facts.type_name
-    access = facts.access
+    index, access = facts.object_index, facts.access
+    by_name = facts.defaults_by_name
     sub_items: list[EsiCoeSubItem] = []
-    if rows:
-        by_name = facts.defaults_by_name
-        for (
-            subindex,
-            sub_name,
-            bits,
-            offset,
-            sub_type,
-            sub_access,
-            sub_pdo_mapping,
-            enum_items,
-        ) in rows:
-            defaults = by_name.get(sub_name, _NO_DEFAULTS)
-            sub_items.append(
-                EsiCoeSubItem(
+    for (
+        subindex,
+        sub_name,
+        bits,
+        offset,
+        sub_type,
+        sub_access,
+        sub_pdo_mapping,
+        enum_items,
+    ) in rows:
+        defaults = by_name.get(sub_name, _NO_DEFAULTS)
+        sub_items.append(
+            new_record(
+                EsiCoeSubItem,
+                (
                     index,
                     subindex,
                     sub_name,
@@ -422,19 +476,23 @@ def resolve_object(
                     defaults[3],
                     defaults[4],
                     enum_items,
-                )
+                ),
             )
-    return EsiCoeObject(
-        index,
-        name,
-        type_name,
-        facts.bit_size,
-        access,
-        facts.pdo_mapping,
-        facts.category,
-        facts.default_data,
-        tuple(sub_items),
-        data_type.enum_items if data_type is not None else (),
+        )
+    return new_record(
+        EsiCoeObject,
+        (
+            index,
+            facts.name,
+            facts.type_name,
+            facts.bit_size,
+            access,
+            facts.pdo_mapping,
+            facts.category,
+            facts.default_data,
+            tuple(sub_items),
+            data_type.enum_items if data_type is not None else (),
+        ),
     )
 
 
@@ -456,31 +514,52 @@ def _type_table(element: Element, memo: ParseMemo | None) -> TypeTable:
     return table
 
 
+def _shared_object(
+    element: Element, key: str, table: TypeTable, check: bool, memo: ParseMemo
+) -> EsiCoeObject:
+    """One `<Object>` (text `key`) through `memo`: its facts read once, the
+    object resolved once per data type and expansion it meets."""
+    facts = memo.object_facts.get(key)
+    if facts is None:
+        facts = memo.object_facts[key] = read_object(element, memo, key)
+    data_type, rows = object_type(facts, element, table, check)
+    meaning = (key, id(data_type), id(rows))
+    coe_object = memo.objects.get(meaning)
+    if coe_object is None:
+        coe_object = memo.objects[meaning] = resolve_object(facts, data_type, rows)
+    return coe_object
+
+
 def _objects(
     element: Element, table: TypeTable, check: bool, memo: ParseMemo | None
 ) -> dict[int, EsiCoeObject]:
     """`<Objects>` -> objects by index (the first of an index wins)."""
-    children = [child for child in element if child.tag == "Object"]
-    keys = None
-    if memo is not None:
-        keys = child_keys(element_key(element), "Object", len(children))
     objects: dict[int, EsiCoeObject] = {}
-    if keys is None or memo is None:
-        for child in children:
+    if memo is None:
+        for child in element.iterchildren("Object"):
             coe_object = parse_object(child, table, check)
             objects.setdefault(coe_object.index, coe_object)
         return objects
-    for child, key in zip(children, keys, strict=True):
-        facts = memo.object_facts.get(key)
-        if facts is None:
-            facts = memo.object_facts[key] = read_object(child)
-        data_type, rows = object_type(facts, child, table, check)
-        meaning = (key, id(data_type), id(rows))
-        coe_object = memo.objects.get(meaning)
+    key = element_key(element)
+    table_key = (key, id(table))
+    known = memo.object_tables.get(table_key)
+    if known is not None:
+        return dict(known)
+    children = list(element.iterchildren("Object"))
+    keys = child_keys(key, "Object", len(children))
+    if keys is None:
+        keys = [element_key(child) for child in children]
+    table_id = id(table)
+    for child, child_key in zip(children, keys, strict=True):
+        in_table = (child_key, table_id)
+        coe_object = memo.objects_in_table.get(in_table)
         if coe_object is None:
-            coe_object = memo.objects[meaning] = resolve_object(facts, data_type, rows)
+            coe_object = memo.objects_in_table[in_table] = _shared_object(
+                child, child_key, table, check, memo
+            )
         objects.setdefault(coe_object.index, coe_object)
-    return objects
+    memo.object_tables[table_key] = objects
+    return dict(objects)
 
 
 def parse_dictionary(

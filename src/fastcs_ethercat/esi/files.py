@@ -14,7 +14,6 @@ parser, so line numbers are those an editor shows.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -156,38 +155,34 @@ class EsiFileResult:
     warnings: tuple[UserError, ...]
 
 
-def iter_devices(
-    root: Element, source: str, memo: ParseMemo | None = None
-) -> Iterator[EsiDevice | UserError]:
-    """Each device parsed, or the `UserError` that stopped it (`memo`: shared
-    with other documents of the same parse)."""
-    vendor_id = vendor_id_of(root, source)
-    if memo is None:
-        memo = ParseMemo()
-    for position, device in enumerate(device_elements(root)):
-        try:
-            yield parse_device_element(
-                device, position, vendor_id=vendor_id, source=source, memo=memo
-            )
-        except UserError as error:
-            yield error
-
-
 @held()  # a burst that only builds objects: see `collector`
 def parse_document(
     data: bytes, source: str, *, strict: bool = False, memo: ParseMemo | None = None
 ) -> EsiFileResult:
-    """Parse every device of an ESI document held in memory."""
+    """Parse every device of an ESI document held in memory (`memo`: shared
+    with other documents of the same parse).
+
+    Each device is emptied once parsed: the tree is freed piece by piece
+    while it is still in the cache, rather than all at once at the end
+    (a few % of a full parse)."""
     root = read_root(data, source)
+    vendor_id = vendor_id_of(root, source)
+    if memo is None:
+        memo = ParseMemo()
     devices: list[EsiDevice] = []
     warnings: list[UserError] = []
-    for item in iter_devices(root, source, memo):
-        if isinstance(item, UserError):
+    for position, device in enumerate(device_elements(root)):
+        try:
+            devices.append(
+                parse_device_element(
+                    device, position, vendor_id=vendor_id, source=source, memo=memo
+                )
+            )
+        except UserError as error:
             if strict:
-                raise item
-            warnings.append(item)
-        else:
-            devices.append(item)
+                raise
+            warnings.append(error)
+        device.clear()
     return EsiFileResult(
         source=source, devices=tuple(devices), warnings=tuple(warnings)
     )

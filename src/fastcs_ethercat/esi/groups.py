@@ -187,31 +187,39 @@ def _maximal_independent_sets(
         excluded = sum(bit[other] for other in adjacency[node] if other in bit)
         compatible.append(full & ~excluded & ~bit[node])
     found: list[int] = []
-
-    def expand(chosen: int, candidates: int, done: int) -> bool:
-        if not candidates and not done:
-            found.append(chosen)
-            return len(found) <= MAX_ALTERNATIVES
-        pivot_pool = candidates | done
-        pivot = (pivot_pool & -pivot_pool).bit_length() - 1
-        rest = candidates & ~compatible[pivot]
-        while rest:
-            low = rest & -rest
-            position = low.bit_length() - 1
-            if not expand(
-                chosen | low,
-                candidates & compatible[position],
-                done & compatible[position],
-            ):
-                return False
-            candidates &= ~low
-            done |= low
-            rest &= ~low
-        return True
-
-    if not expand(0, full, 0):
+    if not _expand(0, full, 0, compatible, found):
         return None
     return [[node for i, node in enumerate(members) if mask >> i & 1] for mask in found]
+
+
+def _expand(
+    chosen: int, candidates: int, done: int, compatible: list[int], found: list[int]
+) -> bool:
+    """One Bron-Kerbosch step (with pivot): maximal sets extending `chosen`
+    go to `found`; False once there are too many. (A module function, not a
+    closure: a closure that calls itself is a reference cycle, garbage only
+    the collector frees.)"""
+    if not candidates and not done:
+        found.append(chosen)
+        return len(found) <= MAX_ALTERNATIVES
+    pivot_pool = candidates | done
+    pivot = (pivot_pool & -pivot_pool).bit_length() - 1
+    rest = candidates & ~compatible[pivot]
+    while rest:
+        low = rest & -rest
+        position = low.bit_length() - 1
+        if not _expand(
+            chosen | low,
+            candidates & compatible[position],
+            done & compatible[position],
+            compatible,
+            found,
+        ):
+            return False
+        candidates &= ~low
+        done |= low
+        rest &= ~low
+    return True
 
 
 def _is_mixed(alternative: list[int], by_index: dict[int, EsiPdo]) -> bool:

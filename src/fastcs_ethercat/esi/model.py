@@ -44,6 +44,12 @@ def parse_esi_int(text: str) -> int:
     return sign * int(value, 10)
 
 
+new_record = tuple.__new__
+"""`new_record(EsiEntry, (...))`: a record from a tuple of all its fields in
+order, for the hot loops (NamedTuple's own `__new__` is a Python function,
+several times slower)."""
+
+
 class EsiEntry(NamedTuple):
     """One PDO entry: a mapped object (or a gap, when `index` is 0)."""
 

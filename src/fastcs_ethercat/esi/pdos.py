@@ -12,7 +12,8 @@ and says so.
 from __future__ import annotations
 
 from .channels import channel_template
-from .model import EsiEntry, EsiPdo, PdoDirection
+from .memo import ParseMemo, shared
+from .model import EsiEntry, EsiPdo, PdoDirection, new_record
 from .xmltext import NUMBERS, Element, bool_attr, fail, int_attr, int_of, text_of
 
 PDO_TAGS: dict[str, PdoDirection] = {"TxPdo": "tx", "RxPdo": "rx"}
@@ -53,19 +54,27 @@ def parse_entry(element: Element) -> EsiEntry:
         raise fail(element, f"PDO entry {name!r} has no <Index>")
     if bit_len is None:
         raise fail(element, f"PDO entry {name!r} has no <BitLen>")
-    return EsiEntry(index, subindex, bit_len, name, data_type, comment, dscale)
+    return new_record(
+        EsiEntry, (index, subindex, bit_len, name, data_type, comment, dscale)
+    )
 
 
-def parse_pdo(element: Element, direction: PdoDirection) -> EsiPdo:
-    """One PDO element with its entries and exclusions."""
+def parse_pdo(
+    element: Element,
+    direction: PdoDirection,
+    memo: ParseMemo | None = None,
+    key: str = "",
+) -> EsiPdo:
+    """One PDO element with its entries and exclusions (with a `memo` and
+    the element's `key`, each distinct entry is parsed once)."""
     index: int | None = None
     name: str | None = None
     excludes: list[int] = []
-    entries: list[EsiEntry] = []
+    entry_elements: list[Element] = []
     for child in element:
         tag = child.tag
         if tag == "Entry":
-            entries.append(parse_entry(child))
+            entry_elements.append(child)
         elif tag == "Index":
             index = int_of(child, "PDO Index")
         elif tag == "Name":
@@ -73,6 +82,8 @@ def parse_pdo(element: Element, direction: PdoDirection) -> EsiPdo:
                 name = text_of(child)
         elif tag == "Exclude":
             excludes.append(int_of(child, "PDO Exclude"))
+    known = memo.entries if memo else None
+    entries = shared(parse_entry, entry_elements, "Entry", key, known)
     if index is None:
         reference = element.get("Ref")
         if reference is not None:

@@ -28,6 +28,21 @@ def fail(element: Element, message: str) -> EsiFormatError:
     return EsiFormatError(message, element.sourceline)
 
 
+def first_at(element: Element, *path: str) -> Element | None:
+    """What `element.find("A/B")` finds for `first_at(element, "A", "B")`
+    (the first match in document order), without ElementPath's cost per
+    call (4 us, 11 us for a path of three: more than the children walked)."""
+    tag = path[0]
+    for child in element:
+        if child.tag == tag:
+            if len(path) == 1:
+                return child
+            found = first_at(child, *path[1:])
+            if found is not None:
+                return found
+    return None
+
+
 def text_of(element: Element) -> str:
     """Stripped text of an element ("" when empty)."""
     value = element.text
