@@ -251,8 +251,16 @@ class RawClient:
         return self._packets.pop(0)
 
     async def call(self, packet: AmsPacket, timeout: float = 5.0) -> AmsPacket:
+        """The answer to `packet`; notifications that come before it (already
+        on their way) stay queued for `receive`."""
         await self.send(packet)
-        return await self.receive(timeout)
+        notifications: list[AmsPacket] = []
+        while True:
+            answer = await self.receive(timeout)
+            if answer.command != AmsCommand.DEVICE_NOTIFICATION:
+                self._packets[:0] = notifications
+                return answer
+            notifications.append(answer)
 
     async def closed_by_server(self, timeout: float = 5.0) -> bool:
         """True once the server has closed the stream (reads return EOF)."""
