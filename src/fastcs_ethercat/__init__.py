@@ -1,10 +1,7 @@
 """fastcs-ethercat: Beckhoff EtherCAT terminals under TwinCAT as EPICS PVs."""
 
-from importlib.metadata import PackageNotFoundError, version
-
-try:
-    __version__ = version("fastcs-ethercat")
-except PackageNotFoundError:  # running from a source tree without install
-    __version__ = "0.0.0+unknown"
+__version__ = "0.1.0"
+"""The one place the version is written: pyproject.toml reads it from here
+(importing the package costs no metadata lookup)."""
 
 __all__ = ["__version__"]
