@@ -1,4 +1,6 @@
-"""`collector.held`: no collection within, the collector's state restored."""
+"""`collector.held`, `hold` and `release`: no collection within, the
+collector's state restored, what was built meanwhile in the oldest
+generation."""
 
 from __future__ import annotations
 
@@ -7,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from fastcs_ethercat.collector import held
+from fastcs_ethercat.collector import held, hold, release
 
 
 def test_held_stops_collection_within_and_restores_it() -> None:
@@ -53,6 +55,39 @@ def test_held_leaves_frozen_objects_frozen() -> None:
         assert gc.get_freeze_count() == frozen
     finally:
         gc.unfreeze()
+
+
+def test_hold_stops_collection_until_release_and_ages_what_was_built() -> None:
+    hold()
+    try:
+        assert not gc.isenabled()
+        built = Built()
+    finally:
+        release()
+    assert gc.isenabled()
+    assert gc.get_count()[0] < 10
+    assert any(thing is built for thing in gc.get_objects(generation=2))
+
+
+def test_release_without_hold_changes_nothing() -> None:
+    gc.disable()
+    try:
+        release()
+        assert not gc.isenabled()
+    finally:
+        gc.enable()
+    release()
+    assert gc.isenabled()
+
+
+def test_hold_leaves_a_disabled_collector_to_its_owner() -> None:
+    gc.disable()
+    try:
+        hold()
+        release()
+        assert not gc.isenabled()
+    finally:
+        gc.enable()
 
 
 def test_a_full_parse_makes_no_cyclic_garbage() -> None:

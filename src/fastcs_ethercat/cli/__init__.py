@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any, Final
 import typer
 from typer.core import TyperCommand, TyperGroup
 
-from fastcs_ethercat import __version__
+from fastcs_ethercat import __version__, collector
 from fastcs_ethercat.cli.bench import bench_command
 from fastcs_ethercat.cli.ioc import demo_command
 from fastcs_ethercat.cli.options import (
@@ -89,6 +89,7 @@ def _main(
     log_level: LogLevelOption = None,
 ) -> None:
     """Beckhoff EtherCAT terminals under TwinCAT as EPICS PVs."""
+    collector.release()  # held by the entry point; the IOC holds it again
     setup_logging(log_level or DEFAULT_LOG_LEVEL)
 
 
@@ -102,5 +103,5 @@ def run_cli(command: typer.Typer, prog_name: str | None = None) -> None:
 
 
 def app() -> None:
-    """The `fastcs-ethercat` entry point."""
+    """The `fastcs-ethercat` command line (`__main__.main` runs it)."""
     run_cli(_typer_app, "fastcs-ethercat")

@@ -153,11 +153,14 @@ def schema_command() -> None:
 
 
 def _prepare_ioc_process() -> None:
-    """Before the IOC's imports and tree: the collector set to collect
-    rarely (see `collector`), the installed FastCS/softioc/pvxs checked."""
-    from fastcs_ethercat.collector import collect_rarely
+    """Before the IOC's imports and tree: the collector held until the
+    terminal types are loaded (`app.root_controller`), then collecting
+    rarely (see `collector`); the installed FastCS, softioc and
+    epicsdbbuilder checked."""
+    from fastcs_ethercat import collector
 
-    collect_rarely()
+    collector.collect_rarely()
+    collector.hold()
     from fastcs_ethercat.ioc.fastcs_adapter import check_installed
 
     check_installed()

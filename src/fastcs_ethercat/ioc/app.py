@@ -17,6 +17,7 @@ import asyncio
 import logging
 from collections.abc import Callable
 
+from fastcs_ethercat import collector
 from fastcs_ethercat.ioc.boot import PlanSource, boot_source, chain_source, live_source
 from fastcs_ethercat.ioc.config import IocConfig
 from fastcs_ethercat.ioc.controllers.root import RootController
@@ -34,9 +35,13 @@ SourceMaker = Callable[[IocConfig, TerminalRegistry], PlanSource]
 def root_controller(
     config: IocConfig, source: SourceMaker = boot_source
 ) -> RootController:
-    """The root of an IOC whose start-up takes its plan from `source`."""
+    """The root of an IOC whose start-up takes its plan from `source`; the
+    collector, held through the IOC's imports, collects again before the
+    target is asked anything (`collector.hold`)."""
     registry = load_terminals(config.terminal_dirs)
-    return RootController(config, source(config, registry), registry)
+    root = RootController(config, source(config, registry), registry)
+    collector.release()
+    return root
 
 
 def serve(
