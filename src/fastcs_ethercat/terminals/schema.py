@@ -11,10 +11,19 @@ import json
 from pathlib import Path
 from typing import Any
 
-from fastcs_ethercat.terminals.model import TerminalFile
+from pydantic import RootModel
+
+from fastcs_ethercat.terminals.model import TerminalType
 from fastcs_ethercat.terminals.yaml_io import SCHEMA_FILE_NAME
 
 SCHEMA_DIALECT = "https://json-schema.org/draft/2020-12/schema"
+
+
+# Here, not with the models: making this class builds every model's
+# validator, which nothing needs at an IOC's start (the docstring is the
+# schema's description).
+class TerminalFile(RootModel[dict[str, TerminalType]]):
+    """A terminal YAML file: terminal type name -> its description."""
 
 
 def terminal_schema() -> dict[str, Any]:
