@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 
 from tests.conftest import REPO_ROOT
-from tests.ioc_support import ioc_env, start_ioc
+from tests.ioc_support import free_port, ioc_env, start_ioc
 from tests.processes import SESSION_VARIABLE, TOKEN_VARIABLE, new_token
 
 pytestmark = pytest.mark.e2e
@@ -63,6 +63,51 @@ def test_an_untested_fastcs_version_stops_the_ioc_in_one_line(tmp_path: Path) ->
         "error: packages: fastcs 0.99.0 is installed, fastcs-ethercat is tested "
         "with fastcs>=0.14.4,<0.15: install the versions pyproject.toml names"
     ]
+
+
+WAIT_PROBE = """
+import gc, logging, os, runpy, sys
+
+class Probe(logging.Handler):
+    def emit(self, record):
+        if "nothing to serve" in record.getMessage():
+            plugins = os.environ.get("PYDANTIC_DISABLE_PLUGINS")
+            print(f"probe: collector={gc.isenabled()} plugins={plugins!r}", flush=True)
+
+logging.getLogger("fastcs_ethercat.ioc.boot").addHandler(Probe())
+sys.argv[0] = "fastcs-ethercat"
+runpy.run_module("fastcs_ethercat", run_name="__main__", alter_sys=True)
+"""
+"""`python -m fastcs_ethercat`, saying when the IOC waits for its PLC whether
+the collector runs and what pydantic's plugin switch is."""
+
+
+@pytest.mark.parametrize(
+    ("environment", "plugins"),
+    [({}, "__all__"), ({"PYDANTIC_DISABLE_PLUGINS": ""}, "")],
+    ids=["default", "plugins-wanted"],
+)
+def test_the_ioc_waiting_for_its_plc_collects_garbage(
+    tmp_path: Path, environment: dict[str, str], plugins: str
+) -> None:
+    """The collector is held through the IOC's imports (`collector.hold`),
+    never through the wait for a PLC that may not come for days. Pydantic's
+    plugins are off unless the environment says otherwise."""
+    token = new_token()
+    target = f"127.0.0.1:{free_port(tcp=True, udp=False)}"  # nobody answers
+    env = {**ioc_env(token), "XDG_CACHE_HOME": str(tmp_path)}  # no kept chain
+    env.pop("PYDANTIC_DISABLE_PLUGINS", None)
+    env.update(environment)
+    config = str(REPO_ROOT / "ioc" / "demo.yaml")
+    command = [sys.executable, "-c", WAIT_PROBE, "ioc", "--config", config,
+               "--target", target]  # fmt: skip
+    ioc = start_ioc(command, "DEMO", env, token)
+    try:
+        line = ioc.wait_for_line(r"^probe: ", 90)
+    finally:
+        ioc.stop()
+
+    assert line.strip() == f"probe: collector=True plugins={plugins!r}"
 
 
 def test_a_bad_flag_value_names_the_flag() -> None:

@@ -25,7 +25,6 @@ from typing import Annotated
 
 import typer
 
-from fastcs_ethercat.cli.demo_hints import DemoHints, write_pv_list
 from fastcs_ethercat.cli.options import (
     AmsNetIdOption,
     LogLevelOption,
@@ -33,7 +32,6 @@ from fastcs_ethercat.cli.options import (
     apply_log_level,
     plain_typer,
 )
-from fastcs_ethercat.cli.ports import demo_ports
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.ioc.pvlists import PvListFormat, pv_list_text
 from fastcs_ethercat.logs import log_at_most
@@ -41,6 +39,11 @@ from fastcs_ethercat.loopback import EPICS_LOOPBACK_ENV
 from fastcs_ethercat.shipped import DEMO_CHAIN, DEMO_CONFIG
 
 log = logging.getLogger(__name__)
+PYDANTIC_PLUGINS = ("PYDANTIC_DISABLE_PLUGINS", "__all__")
+"""Pydantic's own switch, set for the IOC unless already set (an empty value
+keeps every plugin): loading plugins reads the entry points of every
+installed distribution (10-25 ms of a start), and the IOC validates only its
+configuration, once."""
 WARNINGS_SHOWN = 20
 """Warnings `--list-pvs` logs before it says how many more (all at debug)."""
 
@@ -155,12 +158,14 @@ def schema_command() -> None:
 def _prepare_ioc_process() -> None:
     """Before the IOC's imports and tree: the collector held until the
     terminal types are loaded (`app.root_controller`), then collecting
-    rarely (see `collector`); the installed FastCS, softioc and
-    epicsdbbuilder checked."""
+    rarely (see `collector`); pydantic's plugins off unless the environment
+    says otherwise (see `PYDANTIC_PLUGINS`); the installed FastCS, softioc
+    and epicsdbbuilder checked."""
     from fastcs_ethercat import collector
 
     collector.collect_rarely()
     collector.hold()
+    os.environ.setdefault(*PYDANTIC_PLUGINS)
     from fastcs_ethercat.ioc.fastcs_adapter import check_installed
 
     check_installed()
@@ -175,6 +180,8 @@ def demo_command(
     """Run the simulator with the demo chain and an IOC against it (loopback)."""
     apply_log_level(log_level)
     _prepare_ioc_process()
+    from fastcs_ethercat.cli.demo_hints import DemoHints, write_pv_list
+    from fastcs_ethercat.cli.ports import demo_ports
     from fastcs_ethercat.ioc import app
     from fastcs_ethercat.ioc.config import load_ioc_config
     from fastcs_ethercat.ioc.controllers.root import RootController
