@@ -60,6 +60,9 @@ anywhere else.
   controller class's type hints twice for every instance and walks its
   members once; `install_type_hint_memo` and `install_bind_memo` do each
   once per class.
+- **PVA scalar types once per kind.** FastCS builds a new p4p type for every
+  PV and again for its first value; `install_p4p_type_memo` builds each
+  scalar kind (datatype class, read/write) once, as the types are immutable.
 - **Lean imports.** `fastcs.transports` imports every transport installed
   (REST, GraphQL, Tango too), and setuptools_dso learns its caller with
   `inspect.stack()`; `import_ioc_modules` leaves the unused transports out and
