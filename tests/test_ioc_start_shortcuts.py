@@ -198,3 +198,31 @@ def test_the_collector_runs_rarely_and_freezes_what_the_start_built() -> None:
         """
     )
     assert out.split() == ["True", "True", "False", "True", "True", "True"]
+
+
+def test_pva_scalar_types_are_built_once_per_kind_and_match_fastcs() -> None:
+    out = _run(
+        """
+        from fastcs.attributes import AttrR, AttrRW
+        from fastcs.datatypes import Bool, Float, Int, String
+        from fastcs.transports.epics.pva import _pv_handlers, types
+        built = types.make_p4p_type
+        from fastcs_ethercat.ioc.fastcs_adapter import install_p4p_type_memo
+        install_p4p_type_memo()
+        install_p4p_type_memo()  # idempotent: no memo of the memo
+        make = types.make_p4p_type
+        print("shared", make is _pv_handlers.make_p4p_type, make is not built)
+        kinds = [Bool(), Float(prec=3), Int(units="mm"), String()]
+        for kind in kinds:
+            for attr in (AttrR, AttrRW):
+                a, b = attr(kind), attr(type(kind)())
+                same = make(a) is make(b)
+                equal = make(a).aspy() == built(a).aspy()
+                print(type(kind).__name__, attr.__name__, same, equal)
+        print("kinds differ", make(AttrR(Int())) is not make(AttrRW(Int())))
+        """
+    )
+    lines = out.split("\n")
+    assert lines[0] == "shared True True"
+    assert all(line.endswith("True True") for line in lines[1:9]), out
+    assert lines[9] == "kinds differ True"

@@ -60,6 +60,9 @@ anywhere else.
   controller class's type hints twice for every instance and walks its
   members once; `install_type_hint_memo` and `install_bind_memo` do each
   once per class.
+- **PVA scalar types once per kind.** FastCS builds a new p4p type for every
+  PV and again for its first value; `install_p4p_type_memo` builds each
+  scalar kind (datatype class, read/write) once, as the types are immutable.
 - **Lean imports.** `fastcs.transports` imports every transport installed
   (REST, GraphQL, Tango too), and setuptools_dso learns its caller with
   `inspect.stack()`; `import_ioc_modules` leaves the unused transports out and
@@ -158,6 +161,7 @@ _CA_MODULE: Final = "fastcs.transports.epics.ca.ioc"
 _PVA_IOC_MODULE: Final = "fastcs.transports.epics.pva.ioc"
 """Where FastCS's PVA transport makes its PVs (`make_shared_read_pv`)."""
 _PVA_MODULE: Final = "fastcs.transports.epics.pva._pv_handlers"
+_PVA_TYPES_MODULE: Final = "fastcs.transports.epics.pva.types"
 CA_READ: Final = _Closure(
     _CA_MODULE, "_create_and_link_read_pv", "async_record_set", "record"
 )
@@ -688,6 +692,42 @@ def _make_read_pvs_lazy() -> None:
 
     make_shared_read_pv._fastcs_ethercat = True  # type: ignore[attr-defined]
     module.make_shared_read_pv = make_shared_read_pv
+
+
+@functools.cache
+def install_p4p_type_memo() -> None:
+    """Build each PVA scalar type once (idempotent).
+
+    FastCS's `make_p4p_type` builds a new p4p type for every PV, and again for
+    its first value: ~4 800 builds at 104 terminals, inside the PVA build
+    that must fit EPICS's 0.5 s iocInit sleep. A scalar's type depends only
+    on its datatype's class and whether the attribute reads and writes, and
+    a p4p `Type` is immutable, so the PVs of one kind share it. Other
+    datatypes (enums, waveforms, tables) are built each time, as before.
+    """
+    from fastcs.attributes import AttrR, AttrW
+    from fastcs.datatypes import Bool, Float, Int, String
+
+    pva_types: Any = importlib.import_module(_PVA_TYPES_MODULE)
+    handlers: Any = importlib.import_module(_PVA_MODULE)
+    build: Any = getattr(pva_types, "make_p4p_type", None)
+    if build is None:  # `shape_problems` says so
+        return
+    scalars = (Bool, Float, Int, String)
+    known: dict[tuple[type, bool, bool], Any] = {}
+
+    def make_p4p_type(attribute: Attribute[Any, Any]) -> Any:
+        kind = type(attribute.datatype)
+        if kind not in scalars:
+            return build(attribute)
+        key = (kind, isinstance(attribute, AttrR), isinstance(attribute, AttrW))
+        found = known.get(key)
+        if found is None:
+            found = known[key] = build(attribute)
+        return found
+
+    pva_types.make_p4p_type = make_p4p_type
+    handlers.make_p4p_type = make_p4p_type
 
 
 def _pva_poster(
@@ -1366,6 +1406,7 @@ def import_ioc_modules() -> None:
             for name in IOC_MODULES:
                 importlib.import_module(name)
     _make_read_pvs_lazy()
+    install_p4p_type_memo()
     install_type_hint_memo()
     install_bind_memo()
 
@@ -1426,6 +1467,9 @@ def shape_problems() -> list[str]:
     names = parse.__code__.co_names if isinstance(parse, types.FunctionType) else ()
     if "make_shared_read_pv" not in names:
         problems.append(f"fastcs: {_PVA_IOC_MODULE} makes its read PVs another way")
+    for module in (_PVA_TYPES_MODULE, _PVA_MODULE):
+        if "make_p4p_type" not in vars(importlib.import_module(module)):
+            problems.append(f"fastcs: {module} no longer has make_p4p_type")
     pva_ioc: Any = getattr(importlib.import_module(_PVA_IOC_MODULE), "P4PIOC", None)
     run = getattr(pva_ioc, "run", None)
     if not isinstance(run, types.FunctionType) or (
