@@ -357,7 +357,7 @@ def plan_pv_names(
     controllers: dict[tuple[Node, ...], str] = {}
     leaves: dict[PvRequest, str] = {}
     children: dict[tuple[Node, ...], set[Node | PvRequest]] = defaultdict(set)
-    for request in set(requests):  # order-free: siblings are sorted when named
+    for request in requests:  # order-free: siblings are sorted when named
         children[request.path].add(request)
     for path in list(children):  # each controller once, however many leaves
         for depth in range(len(path)):
@@ -416,7 +416,7 @@ def check_alias(key: str, segment: str) -> None:
         )
 
 
-@dataclass(frozen=True)
+@dataclass(slots=True)
 class _Wanted:
     child: Node | PvRequest
     key: str
@@ -477,7 +477,9 @@ def _wanted(
         names: tuple[str, ...] = (segment,)
         writable = False
     else:
-        relative = _symbol_name(level.path, child.leaf)
+        relative = _relative_name(
+            level.twincat[-1] if level.twincat else None, child.leaf
+        )
         key = alias_key([*level.twincat, relative])
         cap = level.leaf_caps[child.writable]
         source = f"leaf:{child.leaf}"
@@ -505,9 +507,14 @@ def _child_sort_key(
 
 def _symbol_name(path: tuple[Node, ...], leaf: str) -> str:
     """A symbol named `<terminal>.<rest>` is named by `<rest>` under its terminal."""
-    terminal = [node for node in path if node.kind in TWINCAT_KINDS][-1:]
-    if terminal and leaf.startswith(terminal[0].name + "."):
-        return leaf[len(terminal[0].name) + 1 :]
+    twincat = [node.name for node in path if node.kind in TWINCAT_KINDS]
+    return _relative_name(twincat[-1] if twincat else None, leaf)
+
+
+def _relative_name(terminal: str | None, leaf: str) -> str:
+    """`leaf` without `<terminal>.` in front (`_symbol_name`)."""
+    if terminal is not None and leaf.startswith(terminal + "."):
+        return leaf[len(terminal) + 1 :]
     return leaf
 
 
@@ -571,8 +578,8 @@ def _resolve_siblings(
                 reasons[index] = fitted.reason
             if fitted.hashed:
                 hashed.add(index)
+    clashing = _clashing(wanted, chosen)
     for length in HASH_LENGTHS:
-        clashing = _clashing(wanted, chosen)
         if not clashing:
             break
         for index in clashing:
@@ -582,7 +589,8 @@ def _resolve_siblings(
                 chosen[index] = with_hash(base, item.cap, item.hash_source, length)
                 reasons[index] = "made distinct from a sibling with the same name"
                 hashed.add(index)
-    for index in _clashing(wanted, chosen):
+        clashing = _clashing(wanted, chosen)
+    for index in clashing:
         item = wanted[index]
         taken = {s.lower() for i, s in chosen.items() if i != index}
         base = drop_inner_vowels(readable[index], item.cap)
