@@ -434,9 +434,10 @@ class _Wanted:
 class _Level:
     """What the children of one controller share: where they sit and their room."""
 
-    path: tuple[Node, ...]
     twincat: tuple[str, ...]
     """The TwinCAT names along the path: where the children's alias keys start."""
+    terminal: str | None
+    """The last of them: a value's symbol is named without it (`_symbol_name`)."""
     pv: str
     """The controller's PV name: the prefix and the segments down to it."""
     leaf_caps: tuple[int, int]
@@ -453,9 +454,10 @@ class _Level:
         budgets: Budgets,
     ) -> _Level:
         room = _leaf_cap(prefix, path, segments, budgets)
+        twincat = tuple(node.name for node in path if node.kind in TWINCAT_KINDS)
         return cls(
-            path,
-            tuple(node.name for node in path if node.kind in TWINCAT_KINDS),
+            twincat,
+            twincat[-1] if twincat else None,
             ":".join((prefix, *segments)),
             (room, room - len(RBV_SUFFIX)),
             budgets,
@@ -477,9 +479,7 @@ def _wanted(
         names: tuple[str, ...] = (segment,)
         writable = False
     else:
-        relative = _relative_name(
-            level.twincat[-1] if level.twincat else None, child.leaf
-        )
+        relative = _relative_name(level.terminal, child.leaf)
         key = alias_key([*level.twincat, relative])
         cap = level.leaf_caps[child.writable]
         source = f"leaf:{child.leaf}"
