@@ -8,11 +8,13 @@ whose YAML the IOC does not get (a copy of terminals/ without it).
 from __future__ import annotations
 
 import asyncio
+import dataclasses
 import shutil
 from collections.abc import Iterator
 
 import pytest
 
+from fastcs_ethercat.ads.client import SymbolTables
 from fastcs_ethercat.ads.ethercat import SlaveIdentity
 from fastcs_ethercat.ads.symbols import AdsSymbolEntry
 from fastcs_ethercat.ioc.clients import ClientPool
@@ -20,6 +22,7 @@ from fastcs_ethercat.ioc.config import IocConfig
 from fastcs_ethercat.ioc.discovery import discover
 from fastcs_ethercat.ioc.plan import PointKind, SlaveInfo, SystemPlan, TerminalPlan
 from fastcs_ethercat.ioc.resolve import (
+    Resolver,
     coe_points,
     group_symbols,
     resolve_terminal,
@@ -74,14 +77,12 @@ def sim(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SimProcess]:
 
 async def _discover_with_tables(
     sim: SimProcess, registry: TerminalRegistry
-) -> tuple[SystemPlan, dict[int, list[AdsSymbolEntry]]]:
+) -> tuple[SystemPlan, dict[int, SymbolTables]]:
     config = IocConfig(prefix="TEST", target=sim.pyads_ip, ams_net_id=sim.net_id)
     async with ClientPool.for_target(config.target) as pool:
         plan = await discover(pool, registry, config)
         tables = {
-            m.device_id: (
-                await (await pool(sim.net_id, m.symbol_port)).upload_symbols()
-            ).symbols
+            m.device_id: await (await pool(sim.net_id, m.symbol_port)).upload_symbols()
             for m in plan.masters
         }
     return plan, tables
@@ -90,12 +91,12 @@ async def _discover_with_tables(
 @pytest.fixture(scope="module")
 def resolved(
     sim: SimProcess, registry: TerminalRegistry
-) -> tuple[SystemPlan, dict[int, list[AdsSymbolEntry]]]:
+) -> tuple[SystemPlan, dict[int, SymbolTables]]:
     return asyncio.run(_discover_with_tables(sim, registry))
 
 
 @pytest.fixture(scope="module")
-def plan(resolved: tuple[SystemPlan, dict[int, list[AdsSymbolEntry]]]) -> SystemPlan:
+def plan(resolved: tuple[SystemPlan, dict[int, SymbolTables]]) -> SystemPlan:
     return resolved[0]
 
 
@@ -188,14 +189,14 @@ def test_oversampling_length_from_the_live_table(plan: SystemPlan) -> None:
 
 @pytest.mark.e2e
 def test_unknown_terminal_gets_a_generic_plan(
-    resolved: tuple[SystemPlan, dict[int, list[AdsSymbolEntry]]],
+    resolved: tuple[SystemPlan, dict[int, SymbolTables]],
 ) -> None:
     plan, tables = resolved
     generic = terminal(plan, 1, "Term 3 (EL3602)")
     assert generic.terminal_type is None
     assert generic.warnings and "no terminal YAML" in generic.warnings[0]
     assert not any(p.writable for p in generic.points)
-    live = {e.name for e in tables[1] if e.name.startswith("Term 3 (EL3602).")}
+    live = {e.name for e in tables[1].symbols if e.name.startswith("Term 3 (EL3602).")}
     served = {p.symbol for p in generic.points}
     for name in live:
         assert name in served or any(s.startswith(name + ".") for s in served)
@@ -206,11 +207,11 @@ def test_unknown_terminal_gets_a_generic_plan(
 
 @pytest.mark.e2e
 def test_points_sit_where_the_live_table_says(
-    resolved: tuple[SystemPlan, dict[int, list[AdsSymbolEntry]]],
+    resolved: tuple[SystemPlan, dict[int, SymbolTables]],
 ) -> None:
     plan, tables = resolved
     for master in plan.masters:
-        entries = {e.name: e for e in tables[master.device_id]}
+        entries = {e.name: e for e in tables[master.device_id].symbols}
         for plan_terminal in master.terminals:
             for point in plan_terminal.points:
                 entry = entries.get(point.symbol) or next(
@@ -258,6 +259,58 @@ def test_yaml_bit_offsets_when_the_type_is_not_listed(
         value.index_offset - 1,
         7,
     )
+
+
+@pytest.mark.e2e
+def test_terminals_of_a_type_share_the_work_not_the_points(
+    resolved: tuple[SystemPlan, dict[int, SymbolTables]], registry: TerminalRegistry
+) -> None:
+    """One `Resolver` works a type out once per live layout: every terminal
+    still gets what it gets resolved alone, at its own names and addresses
+    (the same layout elsewhere, another group, a symbol missing)."""
+    plan, tables = resolved
+    types = {t.name: t for table in tables.values() for t in table.data_types}
+    standard_slave = terminal(plan, 2, "Term 8 (EL3104)").slave
+    compact_slave = terminal(plan, 1, "Term 2 (EL3104)").slave
+    standard = group_symbols(tables[2].symbols)[standard_slave.name]
+    compact = group_symbols(tables[1].symbols)[compact_slave.name]
+
+    def moved(
+        name: str, shift: int, dropped: str = ""
+    ) -> tuple[SlaveInfo, list[AdsSymbolEntry]]:
+        entries = [
+            dataclasses.replace(
+                e,
+                name=name + e.name.removeprefix(standard_slave.name),
+                index_offset=e.index_offset + shift,
+            )
+            for e in standard
+            if not dropped or not e.name.endswith(dropped)
+        ]
+        return dataclasses.replace(standard_slave, name=name), entries
+
+    rack = [
+        (standard_slave, standard),
+        (compact_slave, compact),
+        moved("Term 20 (EL3104)", 100),
+        moved("Term 21 (EL3104)", 200, dropped=".AI Standard Channel 2"),
+        (standard_slave, standard),
+    ]
+    resolver = Resolver(types, registry)
+    shared = [resolver.terminal("M", slave, entries) for slave, entries in rack]
+    alone = [
+        resolve_terminal("M", slave, entries, types, registry)
+        for slave, entries in rack
+    ]
+    assert shared == alone
+    first, _, same_layout, one_missing, again = shared
+    assert again == first
+    assert [p.index_offset + 100 for p in first.points] == [
+        p.index_offset for p in same_layout.points
+    ]
+    assert all(p.symbol.startswith("Term 20 (EL3104).") for p in same_layout.points)
+    assert len(one_missing.points) < len(first.points)
+    assert "dropped: 'AI Standard Channel 2'" in one_missing.warnings[-1]
 
 
 def test_coe_points_of_selected_objects(registry: TerminalRegistry) -> None:

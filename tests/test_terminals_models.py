@@ -7,6 +7,7 @@ from pydantic import ValidationError
 
 from fastcs_ethercat.terminals.checks import check_terminal, terminal_problems
 from fastcs_ethercat.terminals.files import parse_terminal_text, terminal_file_text
+from fastcs_ethercat.terminals.loader import load_terminals
 from fastcs_ethercat.terminals.model import (
     CoeEnumItem,
     CoeObject,
@@ -22,6 +23,7 @@ from fastcs_ethercat.terminals.model import (
 from fastcs_ethercat.terminals.names import snake_name, templatize
 from fastcs_ethercat.terminals.selection import UnknownGroupError, select_group
 from fastcs_ethercat.terminals.symbols import expanded_symbols
+from tests.conftest import TERMINALS_DIR
 
 
 def _member(
@@ -266,6 +268,25 @@ def test_expanded_symbols_fill_in_channels() -> None:
         "AI Standard Channel 1",
         "AI Standard Channel 2",
     ]
+
+
+def test_expanded_symbols_of_chosen_nodes_in_their_order() -> None:
+    """Expanding only some nodes gives those nodes' symbols of the whole
+    expansion, node by node in the order asked (what a terminal serves)."""
+    for registered in load_terminals([TERMINALS_DIR]):
+        terminal = registered.terminal
+        everything = expanded_symbols(terminal)
+        for group in [None, *(g.name for g in terminal.pdo_groups)]:
+            nodes = terminal.served_nodes(group)
+            rank = {node: k for k, node in enumerate(nodes)}
+            wanted = sorted(
+                (s for s in everything if s.node_index in rank),
+                key=lambda s: rank[s.node_index],
+            )
+            assert expanded_symbols(terminal, nodes=nodes) == wanted
+            assert expanded_symbols(terminal, nodes=nodes[::-1]) == sorted(
+                wanted, key=lambda s: -rank[s.node_index]
+            )
 
 
 def test_oversampled_symbols_are_factor_times_larger() -> None:

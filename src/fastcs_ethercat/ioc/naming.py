@@ -357,15 +357,17 @@ def plan_pv_names(
     controllers: dict[tuple[Node, ...], str] = {}
     leaves: dict[PvRequest, str] = {}
     children: dict[tuple[Node, ...], set[Node | PvRequest]] = defaultdict(set)
-    for request in set(requests):  # order-free: siblings are sorted when named
-        for depth in range(len(request.path)):
-            children[request.path[:depth]].add(request.path[depth])
+    for request in requests:  # order-free: siblings are sorted when named
         children[request.path].add(request)
+    for path in list(children):  # each controller once, however many leaves
+        for depth in range(len(path)):
+            children[path[:depth]].add(path[depth])
     budgets = _budgets(path[-1] for path in children if path)
 
     def name_children(parent: tuple[Node, ...], segments: tuple[str, ...]) -> None:
+        level = _Level.of(prefix, parent, segments, budgets)
         wanted = [
-            _wanted(prefix, parent, segments, child, aliases, budgets)
+            _wanted(level, child, aliases)
             for child in sorted(children[parent], key=_child_sort_key)
         ]
         used.update(item.key for item in wanted if item.pinned is not None)
@@ -414,7 +416,7 @@ def check_alias(key: str, segment: str) -> None:
         )
 
 
-@dataclass(frozen=True)
+@dataclass(slots=True)
 class _Wanted:
     child: Node | PvRequest
     key: str
@@ -428,30 +430,58 @@ class _Wanted:
     hash_source: str
 
 
+@dataclass(frozen=True)
+class _Level:
+    """What the children of one controller share: where they sit and their room."""
+
+    twincat: tuple[str, ...]
+    """The TwinCAT names along the path: where the children's alias keys start."""
+    terminal: str | None
+    """The last of them: a value's symbol is named without it (`_symbol_name`)."""
+    pv: str
+    """The controller's PV name: the prefix and the segments down to it."""
+    leaf_caps: tuple[int, int]
+    """Room for a value's name below it: read-only, writable (its `_RBV`
+    twin's 4 characters kept free)."""
+    budgets: Budgets
+
+    @classmethod
+    def of(
+        cls,
+        prefix: str,
+        path: tuple[Node, ...],
+        segments: tuple[str, ...],
+        budgets: Budgets,
+    ) -> _Level:
+        room = _leaf_cap(prefix, path, segments, budgets)
+        twincat = tuple(node.name for node in path if node.kind in TWINCAT_KINDS)
+        return cls(
+            twincat,
+            twincat[-1] if twincat else None,
+            ":".join((prefix, *segments)),
+            (room, room - len(RBV_SUFFIX)),
+            budgets,
+        )
+
+
 def _wanted(
-    prefix: str,
-    parent: tuple[Node, ...],
-    segments: tuple[str, ...],
-    child: Node | PvRequest,
-    aliases: Mapping[str, str],
-    budgets: Budgets,
+    level: _Level, child: Node | PvRequest, aliases: Mapping[str, str]
 ) -> _Wanted:
-    """What one child of `parent` wants to be called, and its room."""
-    twincat = [node.name for node in parent if node.kind in TWINCAT_KINDS]
+    """What one child of `level` wants to be called, and its room."""
     if isinstance(child, Node):
         segment = default_segment(child.name, child.kind)
         if child.kind not in TWINCAT_KINDS:
-            key = alias_key([*twincat, segment])
+            key = alias_key([*level.twincat, segment])
             return _Wanted(child, key, (segment,), None, True, len(segment), "")
-        key = alias_key([*twincat, child.name])
-        cap = _controller_cap(child.kind, ":".join((prefix, *segments)), budgets)
+        key = alias_key([*level.twincat, child.name])
+        cap = _controller_cap(child.kind, level.pv, level.budgets)
         source = f"{child.kind}:{child.name}"
         names: tuple[str, ...] = (segment,)
         writable = False
     else:
-        relative = _symbol_name(parent, child.leaf)
-        key = alias_key([*twincat, relative])
-        cap = _leaf_cap(prefix, parent, segments, child.writable, budgets)
+        relative = _relative_name(level.terminal, child.leaf)
+        key = alias_key([*level.twincat, relative])
+        cap = level.leaf_caps[child.writable]
         source = f"leaf:{child.leaf}"
         names = tuple(dict.fromkeys(default_segment(n) for n in child.names or ()))
         names = tuple(n for n in names if n) or (default_segment(relative),)
@@ -477,9 +507,14 @@ def _child_sort_key(
 
 def _symbol_name(path: tuple[Node, ...], leaf: str) -> str:
     """A symbol named `<terminal>.<rest>` is named by `<rest>` under its terminal."""
-    terminal = [node for node in path if node.kind in TWINCAT_KINDS][-1:]
-    if terminal and leaf.startswith(terminal[0].name + "."):
-        return leaf[len(terminal[0].name) + 1 :]
+    twincat = [node.name for node in path if node.kind in TWINCAT_KINDS]
+    return _relative_name(twincat[-1] if twincat else None, leaf)
+
+
+def _relative_name(terminal: str | None, leaf: str) -> str:
+    """`leaf` without `<terminal>.` in front (`_symbol_name`)."""
+    if terminal is not None and leaf.startswith(terminal + "."):
+        return leaf[len(terminal) + 1 :]
     return leaf
 
 
@@ -501,23 +536,18 @@ def _budgets(nodes: Iterable[Node]) -> dict[NodeKind, int]:
 
 
 def _leaf_cap(
-    prefix: str,
-    parent: tuple[Node, ...],
-    segments: tuple[str, ...],
-    rbv: bool,
-    budgets: Budgets,
+    prefix: str, parent: tuple[Node, ...], segments: tuple[str, ...], budgets: Budgets
 ) -> int:
-    """Longest name a value under `parent` may take: what the prefix and the
-    budgets of the levels down to it leave (all of them, present or not; a
-    level longer than its budget counts as it is), less `_RBV` if it has one.
-    Where a terminal sits never changes it."""
+    """Longest name a read-only value under `parent` may take: what the
+    prefix and the budgets of the levels down to it leave (all of them,
+    present or not; a level longer than its budget counts as it is). Where a
+    terminal sits never changes it."""
     actual = {
         node.kind: len(segment) for node, segment in zip(parent, segments, strict=True)
     }
     levels = _LEVELS[parent[-1].kind] if parent else ()
     used = sum(1 + max(budgets[level], actual.get(level, 0)) for level in levels)
-    room = MAX_PV_LENGTH - len(prefix) - used - 1
-    return room - (len(RBV_SUFFIX) if rbv else 0)
+    return MAX_PV_LENGTH - len(prefix) - used - 1
 
 
 def _controller_cap(kind: NodeKind, parent_pv: str, budgets: Budgets) -> int:
@@ -548,8 +578,8 @@ def _resolve_siblings(
                 reasons[index] = fitted.reason
             if fitted.hashed:
                 hashed.add(index)
+    clashing = _clashing(wanted, chosen)
     for length in HASH_LENGTHS:
-        clashing = _clashing(wanted, chosen)
         if not clashing:
             break
         for index in clashing:
@@ -559,7 +589,8 @@ def _resolve_siblings(
                 chosen[index] = with_hash(base, item.cap, item.hash_source, length)
                 reasons[index] = "made distinct from a sibling with the same name"
                 hashed.add(index)
-    for index in _clashing(wanted, chosen):
+        clashing = _clashing(wanted, chosen)
+    for index in clashing:
         item = wanted[index]
         taken = {s.lower() for i, s in chosen.items() if i != index}
         base = drop_inner_vowels(readable[index], item.cap)

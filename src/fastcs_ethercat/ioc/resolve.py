@@ -187,19 +187,33 @@ def _point(
     )
 
 
+@dataclass(frozen=True, slots=True)
+class _PointShape:
+    """A point as every terminal of one type and live layout has it: all of
+    it but where the terminal's symbol is (`_point` adds that)."""
+
+    rest: str
+    """The live symbol's name after the terminal's (`AI Standard Channel 1`)."""
+    member: _Member
+    attribute: str
+    meaning: _Meaning
+
+
 def _live_point(
     master: str, entry: AdsSymbolEntry, member: _Member, attribute: str, kind: str
 ) -> Point:
-    """A point of a symbol no YAML describes (runtime, master, unknown
+    """A point of a symbol no YAML describes (master, unknown terminal)."""
+    rest = entry.name.partition(".")[2] or entry.name
+    meaning = _live_meaning(rest, member, kind)
+    return _point(master, entry, member, attribute, **meaning)
+
+
+def _live_meaning(rest: str, member: _Member, kind: str) -> _Meaning:
+    """A live symbol's member no YAML describes (runtime, master, unknown
     terminal): its DESC and severity from its names (read-only, so nothing
     here is an output)."""
-    rest = entry.name.partition(".")[2] or entry.name
     severity = severity_of_name(member.path or rest)
-    return _point(
-        master,
-        entry,
-        member,
-        attribute,
+    return _Meaning(
         description=describe(kind or None, rest, member.path or None),
         severity=SEVERITY_LEVELS[severity],
     )
@@ -236,15 +250,17 @@ def _fallback_members(symbol: ExpandedSymbol) -> list[_Member]:
 
 
 def detect_active_group(
-    terminal: TerminalType, symbols: Sequence[ExpandedSymbol], live: Iterable[str]
+    terminal: TerminalType,
+    names_by_group: Mapping[str, frozenset[str]],
+    live: Iterable[str],
 ) -> str | None:
-    """The PDO group whose symbols the live table holds (most of them)."""
+    """The PDO group whose symbols (`names_by_group`) the live table holds
+    (most of them)."""
     names = set(live)
     best: tuple[int, int, str] | None = None
     wanted = terminal.active_group
     for group in terminal.pdo_groups:
-        expected = {s.name for s in symbols if s.node_index in group.symbol_indices}
-        score = len(expected & names)
+        score = len(names_by_group[group.name] & names)
         if not score:
             continue
         rank = (
@@ -257,41 +273,168 @@ def detect_active_group(
     return None if best is None else best[2]
 
 
-def chosen_symbols(
-    terminal: TerminalType, symbols: Sequence[ExpandedSymbol], active: str | None
-) -> list[ExpandedSymbol]:
+def chosen_symbols(terminal: TerminalType, active: str | None) -> list[ExpandedSymbol]:
     """The symbols to serve, per channel, in the order the terminal's
     `served_nodes` gives (the one rule of what a terminal serves)."""
-    rank = {node: k for k, node in enumerate(terminal.served_nodes(active))}
-    served = [s for s in symbols if s.node_index in rank]
-    return sorted(served, key=lambda s: rank[s.node_index])
+    return expanded_symbols(terminal, nodes=terminal.served_nodes(active))
 
 
-_TypeView = tuple[TerminalType, list[ExpandedSymbol], list[CoePoint]]
+Layout = tuple[str, int, bool] | None
+"""What the members of a live symbol depend on (`symbol_members`): its type,
+its size, whether it is bit-addressed; None: not on the target."""
 
 
-class TypeViews:
-    """Per terminal type, what every terminal of that type shares: its symbols
-    expanded per channel and its CoE points. A rack repeats a few types many
-    times; computed once per type and discovery, not once per terminal."""
+_ShapeKey = tuple[str | None, tuple[Layout, ...], tuple[Layout, ...]]
+"""The running group, the layouts of the served symbols, of the runtime ones."""
 
-    def __init__(self) -> None:
-        self._views: dict[int, _TypeView] = {}
 
-    def _of(self, terminal: TerminalType) -> _TypeView:
-        found = self._views.get(id(terminal))
-        if found is None:  # the terminal is kept in the entry: its id stays its own
-            found = (terminal, expanded_symbols(terminal), coe_points(terminal))
-            self._views[id(terminal)] = found
+def _layout(entry: AdsSymbolEntry | None) -> Layout:
+    if entry is None:
+        return None
+    return (entry.type_name, entry.size, entry.index_group in BIT_GROUPS)
+
+
+class TypeView:
+    """What every terminal of one type shares: its symbol names (all, and per
+    PDO group), the symbols it serves per running group, its points per live
+    layout and its CoE points. Only the served nodes are expanded with their
+    members: a terminal with many PDO groups (ELM3704: 5 540 members, 34
+    served) serves a few."""
+
+    def __init__(self, terminal: TerminalType, type_name: str, types: Types) -> None:
+        self.terminal = terminal
+        self.type_name = type_name
+        self.types = types
+        by_node = [node.names() for node in terminal.symbol_nodes]
+        self.symbol_names = frozenset(name for names in by_node for name in names)
+        """Every symbol the YAML describes, per channel (after the terminal's name)."""
+        self.names_by_group = {
+            group.name: frozenset(
+                name for index in group.symbol_indices for name in by_node[index]
+            )
+            for group in terminal.pdo_groups
+        }
+        self.coe = tuple(coe_points(terminal))
+        self._served: dict[str | None, list[ExpandedSymbol]] = {}
+        self._shapes: dict[_ShapeKey, tuple[list[_PointShape], list[str]]] = {}
+
+    def served(self, active: str | None) -> list[ExpandedSymbol]:
+        """`chosen_symbols(terminal, active)` (shared: do not modify)."""
+        found = self._served.get(active)
+        if found is None:
+            found = self._served[active] = chosen_symbols(self.terminal, active)
         return found
 
-    def symbols(self, terminal: TerminalType) -> list[ExpandedSymbol]:
-        """`expanded_symbols(terminal)` (shared: do not modify)."""
-        return self._of(terminal)[1]
+    def shapes(
+        self, active: str | None, live: Mapping[str, AdsSymbolEntry]
+    ) -> tuple[list[_PointShape], list[str]]:
+        """(the points, the served symbols `live` lacks) of a terminal of this
+        type running `active` with the live symbols `live` (by their name
+        after the terminal's); the same for every terminal whose live symbols
+        have the same layouts (shared: do not modify)."""
+        served = self.served(active)
+        key: _ShapeKey = (
+            active,
+            tuple(_layout(live.get(symbol.name)) for symbol in served),
+            tuple(_layout(live.get(rest)) for rest in RUNTIME_ATTRIBUTES),
+        )
+        found = self._shapes.get(key)
+        if found is None:
+            found = self._shapes[key] = self._shapes_of(served, live)
+        return found
 
-    def coe(self, terminal: TerminalType) -> list[CoePoint]:
-        """`coe_points(terminal)`, a fresh list of the shared frozen points."""
-        return list(self._of(terminal)[2])
+    def _shapes_of(
+        self, served: list[ExpandedSymbol], live: Mapping[str, AdsSymbolEntry]
+    ) -> tuple[list[_PointShape], list[str]]:
+        names: set[str] = set()
+        shapes: list[_PointShape] = []
+        dropped: list[str] = []
+        for symbol in served:
+            entry = live.get(symbol.name)
+            if entry is None:
+                dropped.append(symbol.name)
+                continue
+            members = symbol_members(entry, self.types) or _fallback_members(symbol)
+            shapes += _yaml_shapes(symbol, members, names, self.type_name)
+        for rest, attribute in RUNTIME_ATTRIBUTES.items():
+            entry = live.get(rest)
+            if entry is not None:
+                for member in symbol_members(entry, self.types):
+                    attribute = take_unique(attribute, names)
+                    meaning = _live_meaning(rest, member, self.type_name)
+                    shapes.append(_PointShape(rest, member, attribute, meaning))
+        return shapes, dropped
+
+
+class Resolver:
+    """Resolves slaves against one master's live tables. What the terminals
+    of one type share (`TypeView`) is worked out once per type, so a rack of
+    a few types repeated costs little more than its types; made anew for
+    every discovery, nothing outlives the tables it was made for."""
+
+    def __init__(self, types: Types, registry: TerminalRegistry) -> None:
+        self.types = types
+        self.registry = registry
+        self._views: dict[tuple[str, int], TypeView] = {}
+
+    def _view(self, match: RegistryMatch) -> TypeView:
+        key = (match.type_name, id(match.terminal))
+        found = self._views.get(key)
+        if found is None:  # the view keeps the terminal: its id stays its own
+            found = TypeView(match.terminal, match.type_name, self.types)
+            self._views[key] = found
+        return found
+
+    def terminal(
+        self, master: str, slave: SlaveInfo, entries: Sequence[AdsSymbolEntry]
+    ) -> TerminalPlan:
+        """One slave's plan: matched YAML (or generic) and its points."""
+        identity = slave.identity
+        match = self.registry.lookup(
+            identity.product_code, identity.revision, identity.vendor_id
+        )
+        if match is None:
+            plan = TerminalPlan(slave=slave, terminal_type=None)
+            plan.points = generic_points(master, entries, self.types, slave.type_name)
+            if entries:
+                plan.warnings.append(
+                    f"{slave.name}: no terminal YAML for product code "
+                    f"0x{identity.product_code:08x} revision "
+                    f"0x{identity.revision:08x}; "
+                    f"serving its {len(entries)} live symbols read-only"
+                )
+            return plan
+        terminal = match.terminal
+        plan = TerminalPlan(
+            slave=slave, terminal_type=match.type_name, exact_revision=match.exact
+        )
+        prefix = f"{slave.name}."
+        live = {e.name[len(prefix) :]: e for e in entries if e.name.startswith(prefix)}
+        view = self._view(match)
+        plan.active_group = detect_active_group(terminal, view.names_by_group, live)
+        plan.oversampling = oversampling_factor(terminal, live)
+        wanted = terminal.active_group
+        if wanted is not None and plan.active_group not in (None, wanted.name):
+            plan.warnings.append(
+                f"{slave.name}: the PLC runs PDO group {plan.active_group!r}, the "
+                f"YAML selects {wanted.name!r}; serving {plan.active_group!r}"
+            )
+        shapes, dropped = view.shapes(plan.active_group, live)
+        plan.points = [
+            _point(
+                master, live[shape.rest], shape.member, shape.attribute, **shape.meaning
+            )
+            for shape in shapes
+        ]
+        if not match.exact or dropped:
+            unknown = sum(
+                1
+                for rest in live
+                if rest not in view.symbol_names and rest not in RUNTIME_ATTRIBUTES
+            )
+            plan.warnings.append(_match_warning(slave, match, dropped, unknown))
+        plan.coe = list(view.coe)
+        return plan
 
 
 def resolve_terminal(
@@ -300,64 +443,9 @@ def resolve_terminal(
     entries: Sequence[AdsSymbolEntry],
     types: Types,
     registry: TerminalRegistry,
-    views: TypeViews | None = None,
 ) -> TerminalPlan:
     """One slave's plan: matched YAML (or generic) and its points."""
-    if views is None:
-        views = TypeViews()
-    identity = slave.identity
-    match = registry.lookup(
-        identity.product_code, identity.revision, identity.vendor_id
-    )
-    if match is None:
-        plan = TerminalPlan(slave=slave, terminal_type=None)
-        plan.points = generic_points(master, entries, types, slave.type_name)
-        if entries:
-            plan.warnings.append(
-                f"{slave.name}: no terminal YAML for product code "
-                f"0x{identity.product_code:08x} revision 0x{identity.revision:08x}; "
-                f"serving its {len(entries)} live symbols read-only"
-            )
-        return plan
-    terminal = match.terminal
-    plan = TerminalPlan(
-        slave=slave, terminal_type=match.type_name, exact_revision=match.exact
-    )
-    prefix = f"{slave.name}."
-    live = {e.name[len(prefix) :]: e for e in entries if e.name.startswith(prefix)}
-    symbols = views.symbols(terminal)
-    plan.active_group = detect_active_group(terminal, symbols, live)
-    plan.oversampling = oversampling_factor(terminal, symbols, live)
-    wanted = terminal.active_group
-    if wanted is not None and plan.active_group not in (None, wanted.name):
-        plan.warnings.append(
-            f"{slave.name}: the PLC runs PDO group {plan.active_group!r}, the "
-            f"YAML selects {wanted.name!r}; serving {plan.active_group!r}"
-        )
-    names: set[str] = set()
-    dropped: list[str] = []
-    for symbol in chosen_symbols(terminal, symbols, plan.active_group):
-        entry = live.get(symbol.name)
-        if entry is None:
-            dropped.append(symbol.name)
-            continue
-        plan.points.extend(
-            _yaml_points(master, entry, symbol, types, names, match.type_name)
-        )
-    if not match.exact or dropped:
-        described = {symbol.name for symbol in symbols} | RUNTIME_ATTRIBUTES.keys()
-        unknown = sum(1 for rest in live if rest not in described)
-        plan.warnings.append(_match_warning(slave, match, dropped, unknown))
-    for rest, attribute in RUNTIME_ATTRIBUTES.items():
-        entry = live.get(rest)
-        if entry is not None:
-            for member in symbol_members(entry, types):
-                attribute = take_unique(attribute, names)
-                plan.points.append(
-                    _live_point(master, entry, member, attribute, match.type_name)
-                )
-    plan.coe = views.coe(terminal)
-    return plan
+    return Resolver(types, registry).terminal(master, slave, entries)
 
 
 def _match_warning(
@@ -381,9 +469,7 @@ def _match_warning(
 
 
 def oversampling_factor(
-    terminal: TerminalType,
-    symbols: Sequence[ExpandedSymbol],
-    live: Mapping[str, AdsSymbolEntry],
+    terminal: TerminalType, live: Mapping[str, AdsSymbolEntry]
 ) -> int | None:
     """Samples per cycle as the live table has them: an oversampled symbol's
     live size over one sample's (None: not an oversampling terminal, or the
@@ -391,29 +477,27 @@ def oversampling_factor(
     oversampling = terminal.oversampling
     if oversampling is None or oversampling.by_group:
         return None
-    for symbol in symbols:
-        entry = live.get(symbol.name)
-        node = terminal.symbol_nodes[symbol.node_index]
-        if entry is not None and node.oversampled and symbol.sample_bit_size:
-            return max(1, 8 * entry.size // symbol.sample_bit_size)
+    for node in terminal.symbol_nodes:
+        if not node.oversampled:
+            continue
+        for name in node.names():
+            entry = live.get(name)
+            if entry is not None:
+                return max(1, 8 * entry.size // node.bit_size)
     return None
 
 
-def _yaml_points(
-    master: str,
-    entry: AdsSymbolEntry,
-    symbol: ExpandedSymbol,
-    types: Types,
-    names: set[str],
-    type_name: str,
-) -> list[Point]:
-    members = symbol_members(entry, types) or _fallback_members(symbol)
+def _yaml_shapes(
+    symbol: ExpandedSymbol, members: list[_Member], names: set[str], type_name: str
+) -> list[_PointShape]:
+    """The points of the live `members` of a symbol the YAML describes;
+    `names` holds the terminal's attributes so far (each is made unique)."""
     by_path = {".".join(m.path): m for m in symbol.members}
     by_last = {m.path[-1]: m for m in symbol.members}
     if len(symbol.members) == 1:  # a one-entry PDO is a symbol of the entry's type
         by_path[""] = symbol.members[0]
     writable = symbol.direction == "output"
-    points: list[Point] = []
+    shapes: list[_PointShape] = []
     for member in members:
         yaml_member = by_path.get(member.path) or by_last.get(
             member.path.rpartition(".")[2]
@@ -426,29 +510,26 @@ def _yaml_points(
             attribute = symbol.fastcs_name
         else:
             attribute = f"{symbol.fastcs_name}_{snake_case(member.path)}"
-        points.append(
-            _point(
-                master,
-                entry,
-                member,
-                take_unique(attribute, names),
-                writable=writable,
-                description=describe(
-                    type_name,
-                    symbol.name,
-                    yaml_member.name if yaml_member else member.path or None,
-                ),
-                scaling=(
-                    yaml_member.scaling
-                    if yaml_member and member.kind in NUMBER_KINDS
-                    else None
-                ),
-                severity=SEVERITY_LEVELS[yaml_member.severity] if yaml_member else 0,
-                channel=symbol.channel,
-                entry_name=member.path or symbol.entry_name,
-            )
+        meaning = _Meaning(
+            writable=writable,
+            description=describe(
+                type_name,
+                symbol.name,
+                yaml_member.name if yaml_member else member.path or None,
+            ),
+            scaling=(
+                yaml_member.scaling
+                if yaml_member and member.kind in NUMBER_KINDS
+                else None
+            ),
+            severity=SEVERITY_LEVELS[yaml_member.severity] if yaml_member else 0,
+            channel=symbol.channel,
+            entry_name=member.path or symbol.entry_name,
         )
-    return points
+        shapes.append(
+            _PointShape(symbol.name, member, take_unique(attribute, names), meaning)
+        )
+    return shapes
 
 
 def generic_points(
@@ -559,11 +640,9 @@ def resolve_master(
         master.name, groups.get(master.name, []), types
     )
     warnings: list[str] = []
-    views = TypeViews()
+    resolver = Resolver(types, registry)
     for slave in slaves:
-        plan = resolve_terminal(
-            master.name, slave, groups.get(slave.name, []), types, registry, views
-        )
+        plan = resolver.terminal(master.name, slave, groups.get(slave.name, []))
         override = config.terminals.get(slave.name)
         if override is not None:
             plan.poll_rate_hz = override.poll_rate_hz

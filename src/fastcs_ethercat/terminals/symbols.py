@@ -8,6 +8,7 @@ the `{channel}` and oversampling rules live in one place.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 from fastcs_ethercat.terminals.meaning import (
@@ -84,11 +85,19 @@ class ExpandedSymbol:
 
 
 def expanded_symbols(
-    terminal: TerminalType, *, selected_only: bool = False
+    terminal: TerminalType,
+    *,
+    selected_only: bool = False,
+    nodes: Sequence[int] | None = None,
 ) -> list[ExpandedSymbol]:
-    """Every symbol per channel, in node order (only selected ones if asked)."""
+    """Every symbol per channel, in node order (only selected ones if asked);
+    with `nodes`, those symbol nodes' only, in that order (a terminal with
+    many PDO groups serves a few of its nodes: the rest are not worth their
+    members)."""
     result: list[ExpandedSymbol] = []
-    for node_index, node in enumerate(terminal.symbol_nodes):
+    indices = range(len(terminal.symbol_nodes)) if nodes is None else nodes
+    for node_index in indices:
+        node = terminal.symbol_nodes[node_index]
         if selected_only and not node.selected:
             continue
         samples = terminal.sample_count(node)
