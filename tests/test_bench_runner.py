@@ -24,6 +24,7 @@ from fastcs_ethercat.bench.context import BenchContext, BenchPlan
 from fastcs_ethercat.bench.esi_sections import default_extra_esi, esi_full_parse
 from fastcs_ethercat.bench.report import (
     REQUIRED_KEYS,
+    scan_line,
     summary_lines,
     write_json,
 )
@@ -166,3 +167,26 @@ def test_the_bench_compiles_the_package_bytecode_as_an_install_has_it() -> None:
 
     assert bytecode.compile_package()
     assert cached.is_file()
+
+
+def _scan_entry(symbols: int, cpu_changing_pct: float) -> dict[str, Any]:
+    return {
+        "symbols": symbols,
+        "requests_per_cycle": 3.0,
+        "cpu_unchanged_pct": 3.0,
+        "cpu_changing_pct": cpu_changing_pct,
+        "updates_per_s": symbols * 10.0,
+    }
+
+
+def test_each_scan_is_judged_by_its_own_target_only() -> None:
+    """The 20 % CPU target is the ~1 000-symbol case's: the full run's ~5 000
+    symbols at 50 % CPU is no missed target."""
+    small, middle, big = (
+        scan_line(_scan_entry(1184, 25.0)),
+        scan_line(_scan_entry(5846, 50.0)),
+        scan_line(_scan_entry(11684, 90.0)),
+    )
+    assert "25.0% changing with a monitoring  [target MISSED]" in small
+    assert "[target" not in middle
+    assert big.count("[target met]") == 3 and "MISSED" not in big

@@ -29,6 +29,11 @@ START_TARGET_S = 1.5
 RSS_TARGETS_MB = {"20": 150.0, "104": 200.0}
 CPU_CHANGING_TARGET_PCT = 20.0
 """~1 000 symbols changing every cycle, one client monitoring all (issue 16)."""
+SMALL_SCAN_SYMBOLS = 2_000
+"""A scan below this many symbols is the ~1 000 case of the CPU target; the
+~5 000 case of the full run has no target of its own."""
+BIG_SCAN_SYMBOLS = 10_000
+"""A scan of at least this many symbols is the ~10 000 case of the rate target."""
 UPDATES_TARGET_PER_S = 50_000.0
 """~10 000 symbols changing every cycle: updates one CA client receives."""
 ESI_RATIO_TARGET = 1.5
@@ -82,7 +87,7 @@ def summary_lines(document: dict[str, Any]) -> list[str]:
         lines.append(
             f"peak RSS {size:>4} terminals: {_figure(value, ' MB')}" + _verdict(ok)
         )
-    lines += [_scan_line(entry) for entry in document.get("scan", [])]
+    lines += [scan_line(entry) for entry in document.get("scan", [])]
     deadband = document.get("scan_deadband")
     if isinstance(deadband, dict) and "updates_per_s_with" in deadband:
         lines.append(
@@ -105,10 +110,12 @@ def summary_lines(document: dict[str, Any]) -> list[str]:
     return lines
 
 
-def _scan_line(entry: dict[str, Any]) -> str:
+def scan_line(entry: dict[str, Any]) -> str:
+    """One scan's figures, each against the target of its size."""
     if "error" in entry:
         return f"scan ~{entry.get('target_symbols')} symbols: ERROR {entry['error']}"
-    big = entry["symbols"] >= 10000
+    big = entry["symbols"] >= BIG_SCAN_SYMBOLS
+    small = entry["symbols"] < SMALL_SCAN_SYMBOLS
     changing, received = entry["cpu_changing_pct"], entry["updates_per_s"]
     lost = entry.get("updates_lost_per_s")
     return (
@@ -118,7 +125,7 @@ def _scan_line(entry: dict[str, Any]) -> str:
         + f", CPU {entry['cpu_unchanged_pct']}% unchanged"
         + _verdict(entry["cpu_unchanged_pct"] < 25 if big else None)
         + f" / {changing}% changing with {entry.get('client', 'a')} monitoring"
-        + _verdict(None if big else changing <= CPU_CHANGING_TARGET_PCT)
+        + _verdict(changing <= CPU_CHANGING_TARGET_PCT if small else None)
         + f" ({entry.get('cpu_changing_no_client_pct', '-')}% unmonitored)"
         + f", {received} updates/s received"
         + _verdict(received >= UPDATES_TARGET_PER_S if big else None)
