@@ -25,7 +25,6 @@ from fastcs_ethercat.ioc.resolve import (
     Resolver,
     coe_points,
     group_symbols,
-    resolve_terminal,
     snake_case,
 )
 from fastcs_ethercat.sim.process import SimProcess
@@ -250,7 +249,7 @@ def test_yaml_bit_offsets_when_the_type_is_not_listed(
         data_type=65,
         type_name="AI Standard Channel 1_TYPE",
     )
-    fallback = resolve_terminal("M", standard.slave, [entry], {}, registry)
+    fallback = Resolver({}, registry).terminal("M", standard.slave, [entry])
     points = {p.attribute: p for p in fallback.points}
     assert points["ai_standard_channel_1_value"].index_offset == value.index_offset
     toggle = points["ai_standard_channel_1_status_txpdo_toggle"]
@@ -299,7 +298,7 @@ def test_terminals_of_a_type_share_the_work_not_the_points(
     resolver = Resolver(types, registry)
     shared = [resolver.terminal("M", slave, entries) for slave, entries in rack]
     alone = [
-        resolve_terminal("M", slave, entries, types, registry)
+        Resolver(types, registry).terminal("M", slave, entries)
         for slave, entries in rack
     ]
     assert shared == alone
@@ -336,7 +335,7 @@ def test_helpers() -> None:
     entry = AdsSymbolEntry("Term 1 (EL1014).Channel 1", 0xF031, 0, 1, 33, "BIT")
     assert group_symbols([entry]) == {"Term 1 (EL1014)": [entry]}
     unknown = SlaveInfo(1001, "Term 1 (X)", SlaveIdentity(2, 0x1234, 1))
-    assert resolve_terminal("M", unknown, [], {}, load_terminals([])).points == []
+    assert Resolver({}, load_terminals([])).terminal("M", unknown, []).points == []
 
 
 @pytest.mark.e2e

@@ -437,17 +437,6 @@ class Resolver:
         return plan
 
 
-def resolve_terminal(
-    master: str,
-    slave: SlaveInfo,
-    entries: Sequence[AdsSymbolEntry],
-    types: Types,
-    registry: TerminalRegistry,
-) -> TerminalPlan:
-    """One slave's plan: matched YAML (or generic) and its points."""
-    return Resolver(types, registry).terminal(master, slave, entries)
-
-
 def _match_warning(
     slave: SlaveInfo, match: RegistryMatch, dropped: list[str], unknown: int
 ) -> str:
