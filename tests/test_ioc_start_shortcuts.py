@@ -226,3 +226,48 @@ def test_pva_scalar_types_are_built_once_per_kind_and_match_fastcs() -> None:
     assert lines[0] == "shared True True"
     assert all(line.endswith("True True") for line in lines[1:9]), out
     assert lines[9] == "kinds differ True"
+
+
+def test_records_count_as_initialised_once_the_last_scan_list_is_built() -> None:
+    """iocInit calls Python for every I/O Intr record's scan list after the
+    records' init hook; the PVA build waits for the last call, not the hook
+    (else both share the GIL and iocBuild's sleep starts late), and starts
+    while iocInit still sleeps."""
+    out = _run(
+        """
+        import asyncio
+        from softioc import asyncio_dispatcher, builder, imports, softioc
+        from fastcs_ethercat.ioc import fastcs_adapter
+
+        builder.SetDeviceName("SCANLISTS")
+        for index in range(40):
+            builder.aIn(f"IN{index}")
+            builder.longOut(f"OUT{index}")
+        builder.longIn("PASSIVE", SCAN="Passive")
+        built = []
+        library = imports.scanIoInit
+
+        def counted(scan_list):
+            built.append(scan_list)
+            library(scan_list)
+
+        imports.scanIoInit = counted
+
+        async def main():
+            loop = asyncio.get_running_loop()
+            records = fastcs_adapter.watch_records_initialised(loop)
+            builder.LoadDatabase()
+            dispatcher = asyncio_dispatcher.AsyncioDispatcher()
+            init = asyncio.ensure_future(
+                asyncio.to_thread(softioc.iocInit, dispatcher)
+            )
+            await records
+            print("at resolve", len(built), init.done())
+            await init
+            print("after iocInit", len(built))
+
+        asyncio.run(main())
+        """
+    )
+    told = [line for line in out.splitlines() if line.startswith(("at ", "after "))]
+    assert told == ["at resolve 40 False", "after iocInit 40"], out
