@@ -200,6 +200,8 @@ def test_tree_levels_and_names_follow_the_default_scheme() -> None:
     assert "TEST:PollRate" in names
     assert all(len(name) <= 60 for name in names)
     assert [e.line() for e in root.pvs()] == [e.line() for e in _root(Recorder()).pvs()]
+    assert root.pv_count == len(names)  # counted without listing
+    assert any(e.access == "rw" for e in root.pvs())  # and _RBV, counted too
 
 
 def test_channels_and_coe_objects_are_sub_controllers_of_the_terminal() -> None:

@@ -121,6 +121,7 @@ def list_pvs(config: IocConfig) -> tuple[list[PvEntry], list[str]]:
         plan, connection = await root.plan_source()
         try:
             root.build(plan, connection)
+            root.keep_chain(plan)
             return root.pvs(), root.warnings()
         finally:
             await connection.pool.close()

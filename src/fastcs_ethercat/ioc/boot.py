@@ -24,7 +24,7 @@ import logging
 import time
 from collections.abc import Callable, Coroutine
 from pathlib import Path
-from typing import Any, Final
+from typing import TYPE_CHECKING, Any, Final
 
 from fastcs_ethercat.ads.client import AdsError
 from fastcs_ethercat.ads.errors import AdsCodecError
@@ -38,9 +38,10 @@ from fastcs_ethercat.ioc.discovery import discover
 from fastcs_ethercat.ioc.plan import SystemPlan
 from fastcs_ethercat.ioc.supervisor import Backoff
 from fastcs_ethercat.ioc.target import TargetError, prepare_target
-from fastcs_ethercat.sim.chain import Chain, load_chain
-from fastcs_ethercat.sim.resolve import resolve_chain
 from fastcs_ethercat.terminals.registry import TerminalRegistry
+
+if TYPE_CHECKING:  # chain files are read only without the PLC or with `chain:`
+    from fastcs_ethercat.sim.chain import Chain
 
 logger = logging.getLogger(__name__)
 
@@ -106,6 +107,8 @@ def chain_source(
     (the connection is made only when something asks for a client)."""
 
     async def from_file() -> tuple[SystemPlan, Connection]:
+        from fastcs_ethercat.sim.chain import load_chain
+
         origin = f"the chain file {path}"
         plan = await chain_plan(load_chain(path), registry, config, origin)
         return plan, _offline_connection(config, plan)
@@ -152,6 +155,9 @@ def boot_source(config: IocConfig, registry: TerminalRegistry) -> PlanSource:
 def checked_chain(path: Path, registry: TerminalRegistry) -> Chain:
     """The chain file at `path`, its types known to `registry` (else a
     one-line `UserError` naming the file and line)."""
+    from fastcs_ethercat.sim.chain import load_chain
+    from fastcs_ethercat.sim.resolve import resolve_chain
+
     chain = load_chain(path)
     resolve_chain(chain, registry)
     return chain
@@ -164,6 +170,8 @@ async def _offline_plan(
     why: str,
 ) -> tuple[SystemPlan, Connection] | None:
     """The configured chain, else the cached one, as a plan to serve now."""
+    from fastcs_ethercat.sim.resolve import resolve_chain
+
     if configured is not None:
         chain, origin = configured, f"the chain file {config.chain}"
     else:

@@ -20,15 +20,17 @@ import os
 import re
 import tempfile
 from pathlib import Path
-from typing import Any, Final
+from typing import TYPE_CHECKING, Any, Final
 
 from fastcs_ethercat.ads.ethercat import AlState
 from fastcs_ethercat.cache_dir import cache_dir
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.ioc.plan import MasterPlan, SystemPlan, TerminalPlan
-from fastcs_ethercat.sim.chain import Chain, load_chain, parse_chain
 from fastcs_ethercat.terminals.yaml_io import dump_yaml
 from fastcs_ethercat.terminals.yaml_style import HexInt
+
+if TYPE_CHECKING:  # read and checked only once kept, not at import
+    from fastcs_ethercat.sim.chain import Chain
 
 logger = logging.getLogger(__name__)
 
@@ -100,6 +102,8 @@ def chain_text(plan: SystemPlan, source: str) -> str:
 def write_chain(plan: SystemPlan, source: str, path: Path) -> Chain:
     """Write `plan` as a chain file at `path` (atomically) and return it as
     read back: what is written is always a chain the simulator accepts."""
+    from fastcs_ethercat.sim.chain import parse_chain
+
     text = chain_text(plan, source)
     chain = parse_chain(text, path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -133,6 +137,8 @@ def remember(plan: SystemPlan, target: str) -> None:
 
 def cached_chain(target: str) -> Chain | None:
     """The last chain `target` showed, if one is kept and still reads."""
+    from fastcs_ethercat.sim.chain import load_chain
+
     path = cache_path(target)
     if not path.is_file():
         return None

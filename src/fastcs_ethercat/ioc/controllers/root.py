@@ -40,6 +40,7 @@ from fastcs_ethercat.ioc.controllers.terminal import COE_READ, TerminalControlle
 from fastcs_ethercat.ioc.controllers.tree import (
     PvEntry,
     build_masters,
+    pv_count,
     pv_entries,
     pv_requests,
     requests_by_terminal,
@@ -236,8 +237,8 @@ class RootController(Controller):
             by_terminal=by_terminal,
         )
         self._reconnection = Reconnection(self, connection, plan, self.registry)
-        self.use_plan(plan)
-        self.pv_count = len(self.pvs())
+        self._poll(plan)
+        self.pv_count = pv_count(self)
         self.unserved = len(self.unserved_points())
 
     def use_plan(
@@ -245,8 +246,19 @@ class RootController(Controller):
     ) -> tuple[list[AttrR[Any, Any]], list[AttrR[Any, Any]]]:
         """Every master polls what `plan` (a discovery) has of its points;
         (attributes gone from the target, attributes served)."""
+        self.keep_chain(plan)
+        return self._poll(plan)
+
+    def keep_chain(self, plan: SystemPlan) -> None:
+        """`plan`'s chain, if discovered live, becomes the one an offline start
+        serves (`ioc.chains`). The start keeps it once every PV exists, while
+        EPICS sleeps (`prepare`): not in the way of the records."""
         if not plan.offline_from:
             remember(plan, self.config.target)
+
+    def _poll(
+        self, plan: SystemPlan
+    ) -> tuple[list[AttrR[Any, Any]], list[AttrR[Any, Any]]]:
         by_name = {m.name: m for m in plan.masters}
         gone: list[AttrR[Any, Any]] = []
         served: list[AttrR[Any, Any]] = []
@@ -328,6 +340,7 @@ class RootController(Controller):
         first poll, a slice at a time while `idle()` (what is left is done at
         the first values, as the IOC must serve as soon as EPICS does).
         Never raises: what fails here is done at the first value."""
+        self.keep_chain(self.plan)
         attributes = self.target_attributes()
         for first in range(0, len(attributes), PREPARED_AT_ONCE):
             if not idle():

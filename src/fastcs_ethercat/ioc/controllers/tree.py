@@ -250,6 +250,15 @@ def pv_entries(root: BaseController) -> list[PvEntry]:
     return sorted(_walk(root), key=lambda entry: entry.name)
 
 
+def pv_count(root: BaseController) -> int:
+    """How many PVs `pv_entries` lists, without making and sorting them."""
+    count = len(root.command_methods)
+    for attr in root.attributes.values():
+        if not isinstance(attr, BaseController):
+            count += len(_pvs_of(attr))
+    return count + sum(pv_count(sub) for sub in root.sub_controllers.values())
+
+
 def _walk(controller: BaseController) -> Iterator[PvEntry]:
     path = ":".join(controller.path)
     for name, attr in controller.attributes.items():
@@ -262,6 +271,17 @@ def _walk(controller: BaseController) -> Iterator[PvEntry]:
         yield from _walk(sub)
 
 
+def _pvs_of(attr: Attribute) -> tuple[tuple[str, str], ...]:
+    """(name suffix, access) of each PV an attribute gets."""
+    if isinstance(attr, AttrRW):
+        return (("", "rw"), (RBV_SUFFIX, "r"))
+    if isinstance(attr, AttrR):
+        return (("", "r"),)
+    if isinstance(attr, AttrW):
+        return (("", "w"),)
+    return ()
+
+
 def _entries(pv: str, attr: Attribute) -> Iterator[PvEntry]:
     datatype = type_label(attr.datatype)
     ref = attr.io_ref if attr.has_io_ref() else None
@@ -272,10 +292,5 @@ def _entries(pv: str, attr: Attribute) -> Iterator[PvEntry]:
         source = f"CoE:{coe.index:04X}:{coe.subindex:02X}"
     else:
         source = "ioc"
-    if isinstance(attr, AttrRW):
-        yield PvEntry(pv, "rw", datatype, source)
-        yield PvEntry(pv + RBV_SUFFIX, "r", datatype, source)
-    elif isinstance(attr, AttrR):
-        yield PvEntry(pv, "r", datatype, source)
-    elif isinstance(attr, AttrW):
-        yield PvEntry(pv, "w", datatype, source)
+    for suffix, access in _pvs_of(attr):
+        yield PvEntry(pv + suffix, access, datatype, source)
