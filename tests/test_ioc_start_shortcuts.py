@@ -102,26 +102,49 @@ def test_field_checks_raise_the_library_errors_and_accept_repeats() -> None:
     ]
 
 
-def test_quick_quoting_writes_what_the_library_writes() -> None:
+def test_quick_db_text_writes_what_the_library_writes() -> None:
     """Every character, alone and in text, is quoted as epicsdbbuilder
-    quotes it."""
+    quotes it, and records (comments, links, aliases, infos, fields of any
+    length) are written as its `Record.Print` writes them."""
     out = _run(
         """
+        import io
         from epicsdbbuilder import recordbase
-        from fastcs_ethercat.ioc.fastcs_adapter import install_quick_quoting
+        from softioc import builder
+        from fastcs_ethercat.ioc.fastcs_adapter import install_quick_db_text
         library = recordbase.quote_string
         values = [chr(code) for code in range(300)] + [
             "", "plain text", 'a "quoted" word', "back\\\\slash", "tab\\there",
             "Grad \\u00b0C", "line\\nbreak",
         ]
-        install_quick_quoting()
-        install_quick_quoting()  # idempotent
+        builder.SetDeviceName("QUICK")
+        source = builder.aIn("SOURCE", EGU='m"m', DESC="tab\\there", PREC=3)
+        calc = builder.records.calc("CALC", CALC="A+1", INPA=source)
+        calc.add_alias("QUICK:OTHER")
+        calc.add_alias("QUICK:ANOTHER")
+        calc.add_comment("a comment")
+        calc.add_metadata("some metadata")
+        calc.add_info("Q:form", "String")
+        builder.mbbIn("STATES", ("one", 0), ("two \\"2\\"", 1))
+        builder.WaveformOut("WAVE", length=5, FTVL="CHAR")
+        records = list(recordbase.recordset._RecordSet__RecordSet.values())
+
+        def text():
+            out = io.StringIO()
+            for record in records:
+                record.Print(out)
+            return out.getvalue()
+
+        printed = text()
+        install_quick_db_text()
+        install_quick_db_text()  # idempotent
         quick = recordbase.quote_string
         print(quick is not library)
         print(all(quick(value) == library(value) for value in values))
+        print(text() == printed, "alias" in printed and "info(" in printed)
         """
     )
-    assert out.split() == ["True", "True"]
+    assert out.split() == ["True", "True", "True", "True"]
 
 
 def test_lean_imports_leave_shell_gui_and_setuptools_for_later() -> None:

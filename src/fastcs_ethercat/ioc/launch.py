@@ -107,7 +107,7 @@ def build_fastcs(
 
         fastcs_adapter.set_callback_queue_size(options.callback_queue_size)
         fastcs_adapter.install_field_memo()  # one record per CA PV: fields once
-        fastcs_adapter.install_quick_quoting()
+        fastcs_adapter.install_quick_db_text()
     announce = _Announce(prefix, on_ready, on_built, on_pvs_built)
     transports = [*build_transports(options), announce]
     return FastCS(root, transports, loop)
