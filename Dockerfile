@@ -19,8 +19,10 @@ ARG WHEELS=index
 # fastcs-ethercat itself from the source here (its own step, so a change of
 # the source does not fetch the dependencies again).
 FROM ${BASE_IMAGE} AS wheels-index
-COPY deploy/requirements.lock /src/deploy/requirements.lock
+COPY deploy/requirements.lock deploy/build-pip.lock /src/deploy/
 RUN python3 -m venv /opt/build \
+    && /opt/build/bin/pip install --no-cache-dir --require-hashes \
+        --requirement /src/deploy/build-pip.lock \
     && /opt/build/bin/pip wheel --no-cache-dir --require-hashes \
         --requirement /src/deploy/requirements.lock --wheel-dir /wheels
 COPY pyproject.toml README.md LICENSE /src/

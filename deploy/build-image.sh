@@ -9,7 +9,8 @@
 #    debootstrap and kept (podman image exists), unless BASE_IMAGE names one.
 # 2. The locked dependencies and the fastcs-ethercat wheel, downloaded and
 #    built on this host with its own pip settings (build/wheelhouse and
-#    build/app).
+#    build/app), by the pip of deploy/build-pip.lock in a venv of its own
+#    (build/pip-venv): the host's pip may be too old for the lock.
 # 3. podman build with WHEELS=context: no network inside the build.
 #
 # podman runs through deploy/podman.sh (the options this machine needs).
@@ -59,6 +60,20 @@ if [[ $BASE_IMAGE == localhost/* ]] && ! "${PODMAN[@]}" image exists "$BASE_IMAG
     build_base
 fi
 
+# The pip that builds, whatever the host's is (kept while its lock is the same).
+PIP_LOCK=$REPO/deploy/build-pip.lock
+PIP_VENV=$REPO/build/pip-venv
+PIP_HASH=$(sha256sum "$PIP_LOCK" | cut -d' ' -f1)
+if [[ $(cat "$PIP_VENV/.lock-sha256" 2>/dev/null) != "$PIP_HASH" ]]; then
+    say "a venv with the pip of $(basename "$PIP_LOCK")"
+    rm -rf "$PIP_VENV"
+    "$PYTHON" -m venv "$PIP_VENV"
+    "$PIP_VENV/bin/python" -m pip install --quiet --require-hashes \
+        --requirement "$PIP_LOCK"
+    echo "$PIP_HASH" >"$PIP_VENV/.lock-sha256"
+fi
+PIP=("$PIP_VENV/bin/python" -m pip)
+
 WHEELHOUSE=$REPO/build/wheelhouse
 APP=$REPO/build/app
 LOCK=$REPO/deploy/requirements.lock
@@ -68,14 +83,14 @@ if [[ $(cat "$WHEELHOUSE/.lock-sha256" 2>/dev/null) != "$LOCK_HASH" ]]; then
     say "wheels of the locked dependencies"
     rm -rf "$WHEELHOUSE"
     mkdir -p "$WHEELHOUSE"
-    "$PYTHON" -m pip wheel --quiet --require-hashes --requirement "$LOCK" \
+    "${PIP[@]}" wheel --quiet --require-hashes --requirement "$LOCK" \
         --wheel-dir "$WHEELHOUSE"
     echo "$LOCK_HASH" >"$WHEELHOUSE/.lock-sha256"
 fi
 say "the fastcs-ethercat wheel"
 rm -rf "$APP"
 mkdir -p "$APP"
-"$PYTHON" -m pip wheel --quiet --no-deps --wheel-dir "$APP" "$REPO"
+"${PIP[@]}" wheel --quiet --no-deps --wheel-dir "$APP" "$REPO"
 
 say "podman build -t $TAG"
 # --layers=false: one commit at the end, not one per instruction (each is a
