@@ -44,7 +44,7 @@ def test_a_missing_config_is_one_error_line(tmp_path: Path) -> None:
 
     assert done.returncode == 2
     assert done.stderr.strip().splitlines() == [
-        f"error: {tmp_path / 'none.yaml'}: cannot read: No such file or directory"
+        f"error: {tmp_path / 'none.yaml'}: no such file"
     ]
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import pytest
@@ -115,7 +116,7 @@ def test_errors_name_file_and_key_in_one_line(
         load_ioc_config(path)
 
     text = str(error.value)
-    assert text.startswith(f"{path}:{where}")
+    assert re.match(rf"{re.escape(str(path))}:\d+:\d+: {re.escape(where)}", text)
     assert message in text
     assert "\n" not in text
 
@@ -146,7 +147,7 @@ def test_bad_files_are_one_line_errors(
 
 
 def test_missing_file_is_a_user_error(tmp_path: Path) -> None:
-    with pytest.raises(UserError, match="cannot read"):
+    with pytest.raises(UserError, match="no such file"):
         load_ioc_config(tmp_path / "nope.yaml")
 
 
@@ -165,7 +166,7 @@ def test_route_password_from_file_or_environment(
     assert "p@ss" not in repr(from_file.password())
     with pytest.raises(UserError, match="NOT_SET_FOR_TEST is not set"):
         RouteConfig(password_env="NOT_SET_FOR_TEST").password()
-    with pytest.raises(UserError, match="cannot read the password file"):
+    with pytest.raises(UserError, match="no such password file"):
         RouteConfig(password_file=tmp_path / "missing").password()
 
 
@@ -175,7 +176,7 @@ def test_route_password_from_file_or_environment(
         (b"prefix: X\xff\xfe\n", "not UTF-8 text (byte 0xff at offset 9)"),
         (b"prefix: " + b"[" * 5000 + b"]" * 5000 + b"\n", "nesting depth"),
         (b"prefix: X\nprefix: Y\n", "duplicate key 'prefix'"),
-        (b"x" * (MAX_CONFIG_BYTES + 1), "larger than 4096 KiB"),
+        (b"x" * (MAX_CONFIG_BYTES + 1), "larger than 4 MiB"),
     ],
 )
 def test_hostile_files_are_one_line_errors(

@@ -132,9 +132,7 @@ def ioc_command(
     }
     settings = load_ioc_config(config, overrides)
     if settings.access_security_file is not None:
-        from fastcs_ethercat.ioc.access import check_acf
-
-        check_acf(settings.access_security_file)
+        _check_acf(settings.access_security_file, settings.read_only)
     if list_pvs:
         entries, warnings = app.list_pvs(settings)
         log_at_most(log, logging.WARNING, warnings, WARNINGS_SHOWN, "warnings")
@@ -145,6 +143,20 @@ def ioc_command(
     if list_format is not PvListFormat.TEXT:
         raise UserError("--format goes with --list-pvs (or the `pv_lists_dir:` key)")
     app.serve(settings)
+
+
+def _check_acf(path: Path, read_only: bool) -> None:
+    """EPICS's parser accepts the file; a warning for each group of ours it
+    leaves to DEFAULT's rules (unless --read-only, which overrides them)."""
+    from fastcs_ethercat.ioc.access import check_acf, groups_left_to_default, read_acf
+
+    check_acf(path)
+    if read_only:
+        return
+    for left in groups_left_to_default(read_acf(path)):
+        log.warning(
+            "%s: no rules for %s: they are writable as DEFAULT allows", path, left
+        )
 
 
 @ioc_app.command("schema")

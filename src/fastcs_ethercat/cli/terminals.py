@@ -157,6 +157,11 @@ def list_types(
     """One line per terminal type: newest usable revision, product code, group
     type; revisions that do not parse are named at the end of the line."""
     catalog = _catalog(esi)
+    if not any(entry.parses for entry in catalog.entries):
+        raise UserError(
+            f"no usable terminal type in the ESI sources ({len(catalog)} devices "
+            f"read, {len(catalog.warnings)} warnings above)"
+        )
     shown = 0
     for name in catalog.type_names():
         if filter_glob and not fnmatch.fnmatchcase(name.upper(), filter_glob.upper()):

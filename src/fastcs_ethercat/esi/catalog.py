@@ -29,6 +29,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from lxml import etree
+
+from fastcs_ethercat.bounded import esi_limit, read_bytes_bounded
 from fastcs_ethercat.collector import held
 from fastcs_ethercat.errors import UserError
 
@@ -38,9 +41,11 @@ from .files import (
     EsiFileResult,
     device_elements,
     device_error,
+    device_label,
     identity_or_none,
     parse_device_element,
     parse_document,
+    placed,
     read_root,
     vendor_id_of,
 )
@@ -143,6 +148,7 @@ def scan_document(data: bytes, name: str) -> _Scan:
     warnings: list[str] = []
     passive: list[str] = []
     memo = ParseMemo()
+    copies = _Copies(name)
     for position, device in enumerate(device_elements(root)):
         try:
             row = _row(device, position, vendor_id, name, memo)
@@ -156,7 +162,35 @@ def scan_document(data: bytes, name: str) -> _Scan:
             warnings.append(str(device_error(error, device, position, name)))
             continue
         rows.append(row)
+        copies.check(device, position, row, warnings)
     return rows, warnings, passive
+
+
+class _Copies:
+    """A type and revision described twice in one document: the same text
+    again is harmless, a different one is reported (which copy TwinCAT
+    takes is not said anywhere)."""
+
+    def __init__(self, name: str) -> None:
+        self._name = name
+        self._first: dict[tuple[str, int], Element] = {}
+
+    def check(
+        self, device: Element, position: int, row: _Row, warnings: list[str]
+    ) -> None:
+        key = (row[0], row[1])
+        first = self._first.setdefault(key, device)
+        if first is device or _text(first) == _text(device):
+            return
+        message = (
+            f"{device_label(device, position)}: a second, different copy "
+            f"(the first is at line {first.sourceline})"
+        )
+        warnings.append(str(placed(message, self._name, device)))
+
+
+def _text(device: Element) -> bytes:
+    return etree.tostring(device, with_tail=False)
 
 
 def _passive_name(device: Element) -> str | None:
@@ -386,12 +420,9 @@ def _scan_container(
             if cached is not None:
                 return cached
     try:
-        data = container.read_bytes()
-    except OSError as error:
-        message = f"cannot read ESI file: {error.strerror or error}"
-        return {
-            d.name: ([], [str(UserError(message, path=d.name))], []) for d in documents
-        }
+        data = read_bytes_bounded(container, esi_limit(container), what="ESI file")
+    except UserError as error:
+        return {d.name: ([], [str(error)], []) for d in documents}
     sha = sha256_of(data)
     if cache is not None:
         cached = _from_cache(cache, sha, documents)

@@ -26,7 +26,15 @@ from .model import (
     EsiEnumItem,
     new_record,
 )
-from .xmltext import NUMBERS, Element, EsiFormatError, fail, int_of, text_of
+from .xmltext import (
+    NUMBERS,
+    Element,
+    EsiFormatError,
+    check_bits,
+    fail,
+    int_of,
+    text_of,
+)
 
 _BASE_TYPE = re.compile(
     r"(?:BOOL(?:EAN)?|BIT\d*|BITARR\d+|BYTE|WORD|DWORD|LWORD"
@@ -89,6 +97,8 @@ def _data_type_sub_item(element: Element, owner: str) -> EsiDataTypeSubItem:
             access, pdo_mapping, _ = _flags(child)
     if not type_name:
         raise fail(element, f"sub-item {name!r} of data type {owner} has no <Type>")
+    check_bits(element, f"BitSize of {owner}.{name}", bit_size)
+    check_bits(element, f"BitOffs of {owner}.{name}", bit_offset)
     return new_record(
         EsiDataTypeSubItem,
         (subindex, name, type_name, bit_size, bit_offset, access, pdo_mapping),
@@ -111,7 +121,9 @@ def parse_data_type(element: Element) -> EsiDataType:
         elif tag == "Name":
             name = text_of(child)
         elif tag == "BitSize":
-            bit_size = int_of(child, "data type BitSize")
+            bit_size = check_bits(
+                child, "data type BitSize", int_of(child, "data type BitSize")
+            )
         elif tag == "BaseType":
             base_type = text_of(child) or None
         elif tag == "EnumInfo":
@@ -388,7 +400,9 @@ def _read_object(element: Element, memo: ParseMemo | None, key: str) -> ObjectFa
         elif tag == "Type":
             type_name = text_of(child)
         elif tag == "BitSize":
-            bit_size = int_of(child, "object BitSize")
+            bit_size = check_bits(
+                child, "object BitSize", int_of(child, "object BitSize")
+            )
         elif tag == "Info":
             info = child
         elif tag == "Flags":

@@ -19,6 +19,7 @@ from pathlib import Path
 
 from lxml import etree
 
+from fastcs_ethercat.bounded import MAX_ESI_BYTES, read_bytes_bounded
 from fastcs_ethercat.collector import held
 from fastcs_ethercat.errors import UserError
 
@@ -39,6 +40,7 @@ def _parser(recover: bool = False) -> etree.XMLParser:
         remove_pis=True,
         resolve_entities=False,
         no_network=True,
+        huge_tree=False,  # libxml2's own limits on depth and text stay on
         recover=recover,
     )
 
@@ -189,13 +191,8 @@ def parse_document(
 
 
 def read_bytes(path: Path, source: str) -> bytes:
-    """File content, or a `UserError` if it cannot be read."""
-    try:
-        return path.read_bytes()
-    except OSError as error:
-        raise UserError(
-            f"cannot read ESI file: {error.strerror or error}", path=source
-        ) from None
+    """File content (at most `bounded.MAX_ESI_BYTES`), or a `UserError`."""
+    return read_bytes_bounded(path, MAX_ESI_BYTES, what="ESI file", where=None)
 
 
 def parse_file(path: Path | str, *, strict: bool = False) -> EsiFileResult:

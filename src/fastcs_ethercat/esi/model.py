@@ -30,18 +30,31 @@ Access = Literal["ro", "rw", "wo"]
 GroupOrigin = Literal["alternative_sm_mapping", "exclude"]
 
 
+ESI_INT_CHARS = 20
+"""The longest spelling of an ESI number: 2**64 - 1 has 20 decimal digits."""
+MAX_ESI_BITS = 1 << 20
+"""The most bits an ESI BitLen or BitSize may give (real files: under 12 000)."""
+
+
 def parse_esi_int(text: str) -> int:
     """Parse an ESI number: `#x1a00`, `#X1A00`, `0x1a00`, `4096`, `-5`.
 
-    Raises ValueError for anything else so the caller can name the place.
+    Raises ValueError for anything else, and for a magnitude of 2**64 or
+    more (no ESI field holds one), so the caller can name the place.
     """
     value = text.strip()
     sign = 1
     if value.startswith("-"):
         sign, value = -1, value[1:]
+    if len(value) > ESI_INT_CHARS:  # before int(): 5 000 digits cost a lot
+        raise ValueError(f"{len(value)} characters is too long for a number")
     if value[:2] in ("#x", "#X", "0x", "0X"):
-        return sign * int(value[2:], 16)
-    return sign * int(value, 10)
+        number = int(value[2:], 16)
+    else:
+        number = int(value, 10)
+    if number >= 1 << 64:
+        raise ValueError("out of range (2**64 or more)")
+    return sign * number
 
 
 new_record = tuple.__new__

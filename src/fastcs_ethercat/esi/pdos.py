@@ -14,7 +14,16 @@ from __future__ import annotations
 from .channels import channel_template
 from .memo import ParseMemo, shared
 from .model import EsiEntry, EsiPdo, PdoDirection, new_record
-from .xmltext import NUMBERS, Element, bool_attr, fail, int_attr, int_of, text_of
+from .xmltext import (
+    NUMBERS,
+    Element,
+    bool_attr,
+    check_bits,
+    fail,
+    int_attr,
+    int_of,
+    text_of,
+)
 
 PDO_TAGS: dict[str, PdoDirection] = {"TxPdo": "tx", "RxPdo": "rx"}
 
@@ -54,6 +63,9 @@ def parse_entry(element: Element) -> EsiEntry:
         raise fail(element, f"PDO entry {name!r} has no <Index>")
     if bit_len is None:
         raise fail(element, f"PDO entry {name!r} has no <BitLen>")
+    check_bits(element, f"BitLen of PDO entry {name!r}", bit_len)
+    if not (0 <= index <= 0xFFFF and 0 <= subindex <= 0xFF):
+        raise fail(element, f"PDO entry {name!r}: index or subindex out of range")
     return new_record(
         EsiEntry, (index, subindex, bit_len, name, data_type, comment, dscale)
     )

@@ -13,6 +13,11 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from fastcs_ethercat.bounded import (
+    MAX_ESI_BYTES,
+    read_bytes_bounded,
+    read_member_bounded,
+)
 from fastcs_ethercat.errors import UserError
 
 ZIP_SEPARATOR = "!"
@@ -36,7 +41,9 @@ class EsiDocument:
             return container_bytes
         try:
             with zipfile.ZipFile(io.BytesIO(container_bytes)) as archive:
-                return archive.read(self.member)
+                return read_member_bounded(
+                    archive, self.member, MAX_ESI_BYTES, name=self.name
+                )
         except (KeyError, zipfile.BadZipFile) as error:
             raise UserError(
                 f"cannot read ESI document: {error}", path=self.name
@@ -44,11 +51,13 @@ class EsiDocument:
 
     def read(self) -> bytes:
         """The raw bytes (encoding is left to the XML declaration)."""
+        if self.member is None:
+            return read_bytes_bounded(self.container, MAX_ESI_BYTES, what="ESI file")
         try:
-            if self.member is None:
-                return self.container.read_bytes()
             with zipfile.ZipFile(self.container) as archive:
-                return archive.read(self.member)
+                return read_member_bounded(
+                    archive, self.member, MAX_ESI_BYTES, name=self.name
+                )
         except (OSError, KeyError, zipfile.BadZipFile) as error:
             raise UserError(
                 f"cannot read ESI document: {error}", path=self.name

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from lxml import etree
 
-from .model import parse_esi_int
+from .model import MAX_ESI_BITS, parse_esi_int
 
 Element = etree._Element
 
@@ -77,7 +77,20 @@ def int_of(element: Element, what: str) -> int:
     try:
         return _remembered(value)
     except ValueError:
-        raise fail(element, f"{what} {value.strip()!r} is not a number") from None
+        raise fail(element, f"{what} {shown(value)} is not a number") from None
+
+
+def shown(text: str) -> str:
+    """`text` quoted for a message, cut short when long."""
+    text = text.strip()
+    return repr(text if len(text) <= 24 else text[:20] + "...")
+
+
+def check_bits(element: Element, what: str, bits: int) -> int:
+    """`bits` if a usable bit count (0 to `MAX_ESI_BITS`), else a placed error."""
+    if not 0 <= bits <= MAX_ESI_BITS:
+        raise fail(element, f"{what} {bits} is out of range (0 to {MAX_ESI_BITS})")
+    return bits
 
 
 def int_attr(element: Element, name: str) -> int | None:
@@ -92,7 +105,8 @@ def int_attr(element: Element, name: str) -> int | None:
         return _remembered(value)
     except ValueError:
         raise fail(
-            element, f"attribute {name}={value!r} of <{element.tag}> is not a number"
+            element,
+            f"attribute {name}={shown(value)} of <{element.tag}> is not a number",
         ) from None
 
 

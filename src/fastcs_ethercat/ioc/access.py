@@ -40,6 +40,7 @@ from fastcs.attributes import Attribute
 from fastcs.controllers import ControllerAPI
 from fastcs.transports import Transport
 
+from fastcs_ethercat.bounded import MAX_ACF_BYTES, read_text_bounded
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.ioc.fastcs_adapter import database_records
 
@@ -81,6 +82,7 @@ def check_acf(path: Path) -> None:
     """
     if not path.is_file():
         raise UserError("access security file not found", path=path)
+    read_acf(path)  # bounded before EPICS's parser reads it whole
     done = subprocess.run(
         [sys.executable, "-c", _CHECK_SCRIPT, str(path)],
         capture_output=True,
@@ -90,6 +92,23 @@ def check_acf(path: Path) -> None:
     complaint = _ANSI.sub("", done.stdout + done.stderr).strip()
     if done.returncode != 0 or complaint:
         raise _acf_error(path, complaint or "EPICS rejected the file")
+
+
+def read_acf(path: Path) -> str:
+    """The text of an ACF, read bounded (`bounded.MAX_ACF_BYTES`)."""
+    return read_text_bounded(path, MAX_ACF_BYTES, what="access security file")
+
+
+def groups_left_to_default(text: str) -> list[str]:
+    """What an ACF leaves to DEFAULT's rules of what the IOC puts in groups:
+    "outputs (ASG OUTPUTS)" when it has no ASG(OUTPUTS), likewise COE.
+    EPICS puts a record whose ASG the file lacks in DEFAULT, silently."""
+    code = "\n".join(line.split("#", 1)[0] for line in text.splitlines())
+    left = []
+    for group, what in ((OUTPUTS_GROUP, "outputs"), (COE_GROUP, "CoE parameters")):
+        if not re.search(rf"\bASG\s*\(\s*{group}\s*\)", code):
+            left.append(f"{what} (ASG {group})")
+    return left
 
 
 def _acf_error(path: Path, complaint: str) -> UserError:
@@ -149,7 +168,7 @@ def read_only_acf(site_acf: Path | None, directory: Path) -> Path:
     """
     if site_acf is not None and not site_acf.is_file():
         raise UserError("access security file not found", path=site_acf)
-    text = site_acf.read_text(encoding="utf-8") if site_acf else _OPEN_DEFAULT
+    text = read_acf(site_acf) if site_acf else _OPEN_DEFAULT
     if re.search(rf"\bASG\(\s*{READ_ONLY_GROUP}\s*\)", text):
         raise UserError(f"ASG {READ_ONLY_GROUP} is reserved", path=site_acf)
     path = directory / "read-only.acf"

@@ -31,16 +31,19 @@ from pydantic import (
 )
 
 from fastcs_ethercat.ads.netid import AmsNetId
+from fastcs_ethercat.bounded import (
+    MAX_CONFIG_BYTES,
+    no_bool_for_number,
+    read_text_bounded,
+)
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.ioc.naming import check_alias, check_prefix
 from fastcs_ethercat.shipped import BUILTIN_TERMINALS_DIR
 from fastcs_ethercat.terminals.yaml_io import parse_yaml
-from fastcs_ethercat.textfile import read_text_bounded
 
 DEFAULT_ADS_TCP_PORT: Final = 48898
 DEFAULT_POLL_RATE_HZ: Final = 10.0
 MAX_POLL_RATE_HZ: Final = 1000.0
-MAX_CONFIG_BYTES: Final = 4 * 1024 * 1024
 MAX_PASSWORD_FILE_BYTES: Final = 64 * 1024
 
 
@@ -50,6 +53,7 @@ class _Strict(BaseModel):
     and every module loaded (~30 ms at the IOC's start, for `ioc schema`)."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)
+    _no_bool_for_number = field_validator("*", mode="before")(no_bool_for_number)
 
 
 class RouteConfig(_Strict):
@@ -95,7 +99,7 @@ class RouteConfig(_Strict):
         text = read_text_bounded(
             self.password_file,
             MAX_PASSWORD_FILE_BYTES,
-            what="the password file",
+            what="password file",
             where="route.password_file",
         )
         lines = text.splitlines()
@@ -280,8 +284,9 @@ def load_ioc_config(
     Relative paths in the file are taken relative to the file's directory.
     """
     raw: dict[str, Any] = {}
+    places: dict[tuple[Any, ...], tuple[int, int]] = {}
     if path is not None:
-        raw = _read_yaml(path)
+        raw, places = _read_yaml(path)
         _resolve_paths(raw, path.parent)
     given = {
         key: value for key, value in (overrides or {}).items() if value is not None
@@ -293,11 +298,14 @@ def load_ioc_config(
     except ValidationError as error:
         first = error.errors()[0]
         where = ".".join(str(part) for part in first["loc"]) or "(top level)"
-        if where in given:
-            where = f"{where} (command line)"
         message = first["msg"].removeprefix("Value error, ")
         if first["type"] == "extra_forbidden":
             message = "unknown key"
+        if where in given:
+            where = f"{where} (command line)"
+        elif tuple(first["loc"]) in places:  # the key's line in the file
+            line, column = places[tuple(first["loc"])]
+            message, where = f"{where}: {message}", f"{line}:{column}"
         raise UserError(message, path=path, where=where) from None
 
 
@@ -316,14 +324,15 @@ def config_schema_text() -> str:
     return json.dumps(config_schema(), indent=2) + "\n"
 
 
-def _read_yaml(path: Path) -> dict[str, Any]:
+def _read_yaml(path: Path) -> tuple[dict[str, Any], dict[tuple[Any, ...], Any]]:
+    """The settings and the line:column of each key."""
     text = read_text_bounded(path, MAX_CONFIG_BYTES)
-    data = parse_yaml(text, path).data
-    if data is None:
-        return {}
-    if not isinstance(data, dict):
+    located = parse_yaml(text, path)
+    if located.data is None:
+        return {}, {}
+    if not isinstance(located.data, dict):
         raise UserError("expected a mapping of settings at the top", path=path)
-    return data
+    return located.data, located.places
 
 
 def _resolve_paths(raw: dict[str, Any], base: Path) -> None:

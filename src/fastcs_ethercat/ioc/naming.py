@@ -397,6 +397,12 @@ def check_prefix(prefix: str) -> None:
             f"PV prefix {prefix!r} may hold only letters, digits, '_', '-' and ':'",
             where="prefix",
         )
+    if prefix.endswith(":"):
+        raise UserError(
+            f"PV prefix {prefix!r} must not end in ':' (the IOC adds the ':' "
+            "before the master's name)",
+            where="prefix",
+        )
     if len(prefix) > MAX_PREFIX_LENGTH:
         raise UserError(
             f"PV prefix {prefix!r} is {len(prefix)} characters; at most"

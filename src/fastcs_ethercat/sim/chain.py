@@ -62,6 +62,11 @@ from pydantic import (
 
 from fastcs_ethercat.ads.errors import AdsCodecError
 from fastcs_ethercat.ads.netid import AmsNetId
+from fastcs_ethercat.bounded import (
+    MAX_CHAIN_BYTES,
+    no_bool_for_number,
+    read_text_bounded,
+)
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.terminals.yaml_io import (
     Loc,
@@ -79,6 +84,7 @@ class _Model(BaseModel):
     """Unknown keys are errors: a typo must not silently become a default."""
 
     model_config = ConfigDict(extra="forbid")
+    _no_bool_for_number = field_validator("*", mode="before")(no_bool_for_number)
 
 
 def _net_id(value: Any) -> str:
@@ -320,12 +326,7 @@ def _check_unique_names(chain: Chain) -> None:
 def load_chain(path: Path | str) -> Chain:
     """Read and validate a chain file; one-line UserErrors naming file and line."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise UserError("no such chain file", path=path) from None
-    except (OSError, UnicodeDecodeError) as error:
-        raise UserError(f"cannot read the chain file: {error}", path=path) from None
+    text = read_text_bounded(path, MAX_CHAIN_BYTES, what="chain file")
     return parse_chain(text, path)
 
 

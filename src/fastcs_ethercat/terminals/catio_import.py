@@ -21,9 +21,10 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
+from fastcs_ethercat.bounded import MAX_CATIO_BYTES, read_text_bounded
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.esi.catalog import EsiCatalog
-from fastcs_ethercat.terminals.files import CATIO_LAYOUT_KEY, read_text
+from fastcs_ethercat.terminals.files import CATIO_LAYOUT_KEY
 from fastcs_ethercat.terminals.generate import terminal_from_esi
 from fastcs_ethercat.terminals.model import SymbolMember, SymbolNode, TerminalType
 from fastcs_ethercat.terminals.names import CHANNEL, expand
@@ -114,7 +115,8 @@ def not_importable(located: LocatedYaml) -> UserError:
 
 def read_catio_file(path: Path) -> tuple[LocatedYaml, dict[str, CatioTerminal]]:
     """The validated types of a catio file (unknown keys are errors)."""
-    located = parse_yaml(read_text(path), path)
+    text = read_text_bounded(path, MAX_CATIO_BYTES, what="catio file")
+    located = parse_yaml(text, path)
     data = located.data
     if not isinstance(data, dict) or CATIO_LAYOUT_KEY not in data:
         raise UserError(

@@ -16,6 +16,7 @@ from typing import Any
 
 from pydantic import ValidationError
 
+from fastcs_ethercat.bounded import MAX_TERMINAL_YAML_BYTES, read_text_bounded
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.terminals.checks import check_terminal, terminal_problems
 from fastcs_ethercat.terminals.model import TerminalType
@@ -33,13 +34,8 @@ _TYPE_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.+-]*$")
 
 
 def read_text(path: Path) -> str:
-    """A YAML file's text, or a one-line `UserError`."""
-    try:
-        return path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise UserError("no such file", path=path) from None
-    except (OSError, UnicodeDecodeError) as error:
-        raise UserError(f"cannot read: {error}", path=path) from None
+    """A terminal YAML file's text (bounded), or a one-line `UserError`."""
+    return read_text_bounded(path, MAX_TERMINAL_YAML_BYTES)
 
 
 def read_terminal_file(path: Path | str) -> dict[str, TerminalType]:

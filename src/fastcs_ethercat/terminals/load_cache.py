@@ -23,6 +23,7 @@ from pathlib import Path
 
 import pydantic
 
+from fastcs_ethercat.bounded import MAX_TERMINAL_YAML_BYTES, read_bytes_bounded
 from fastcs_ethercat.cache_dir import cache_dir
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.terminals.files import parse_terminal_text
@@ -49,12 +50,7 @@ def code_fingerprint() -> bytes:
 
 def read_terminal_file_cached(path: Path) -> dict[str, TerminalType]:
     """Like `files.read_terminal_file`, from the cache when the bytes match."""
-    try:
-        data = path.read_bytes()
-    except FileNotFoundError:
-        raise UserError("no such file", path=path) from None
-    except OSError as error:
-        raise UserError(f"cannot read: {error}", path=path) from None
+    data = read_bytes_bounded(path, MAX_TERMINAL_YAML_BYTES)
     key = hashlib.sha256(code_fingerprint() + data).hexdigest()
     entry = cache_root() / f"v{CACHE_FORMAT}-{key}.pickle"
     cached = _load(entry)

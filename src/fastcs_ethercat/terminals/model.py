@@ -152,6 +152,7 @@ from pydantic import (
     field_validator,
 )
 
+from fastcs_ethercat.bounded import no_bool_for_number
 from fastcs_ethercat.terminals.names import CHANNEL, expand
 from fastcs_ethercat.terminals.yaml_style import (
     FLOW_DICT,
@@ -206,6 +207,7 @@ class _Model(BaseModel):
     and validates none (building them was 10 ms of every start)."""
 
     model_config = ConfigDict(extra="forbid", defer_build=True)
+    _no_bool_for_number = field_validator("*", mode="before")(no_bool_for_number)
 
 
 class Identity(_Model):

@@ -8,6 +8,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from fastcs_ethercat.bounded import MAX_TERMINAL_YAML_BYTES, read_text_bounded
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.terminals.comments import DroppedComment, carry_comments
 from fastcs_ethercat.terminals.files import terminal_file_text
@@ -26,12 +27,9 @@ class SavedFile:
 
 def old_text(path: Path) -> str | None:
     """The file's current text, None if there is no file yet."""
-    try:
-        return path.read_text(encoding="utf-8")
-    except FileNotFoundError:
+    if not path.exists():
         return None
-    except (OSError, UnicodeDecodeError) as error:
-        raise UserError(f"cannot read: {error}", path=path) from None
+    return read_text_bounded(path, MAX_TERMINAL_YAML_BYTES)
 
 
 def file_text(

@@ -18,6 +18,7 @@ from pydantic import ValidationError
 from pydantic_core import ErrorDetails
 from yaml.nodes import MappingNode, Node, ScalarNode, SequenceNode
 
+from fastcs_ethercat.bounded import YamlBudget, number_problem
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.terminals.yaml_style import FlowDict, FlowList, HexInt
 
@@ -139,6 +140,7 @@ class _Builder:
         self._located = located
         self._constructor = _Loader("")
         self._open: set[int] = set()
+        self._budget = YamlBudget()
 
     def _place(self, node: Node) -> tuple[int, int]:
         return node.start_mark.line + 1, node.start_mark.column + 1
@@ -150,6 +152,9 @@ class _Builder:
     def build(self, node: Node, loc: Loc) -> Any:
         if id(node) in self._open:
             raise self._fail(node, "recursive alias")
+        problem = self._budget.problem(node, len(loc))
+        if problem is not None:
+            raise self._fail(node, problem)
         self._open.add(id(node))
         try:
             if isinstance(node, MappingNode):
@@ -179,9 +184,16 @@ class _Builder:
 
     def _scalar(self, node: Node) -> Any:
         try:
-            return self._constructor.construct_object(node, deep=True)
+            value = self._constructor.construct_object(node, deep=True)
         except yaml.MarkedYAMLError as error:
             raise _syntax_error(error, self._located.path) from None
+        except ValueError as error:  # int() of over 4 300 digits, a bad date
+            reason = str(error).split(":")[0]
+            raise self._fail(node, f"not a usable value ({reason})") from None
+        problem = number_problem(value)
+        if problem is not None:
+            raise self._fail(node, problem)
+        return value
 
 
 _BaseDumper: type[yaml.SafeDumper] = getattr(yaml, "CSafeDumper", yaml.SafeDumper)
