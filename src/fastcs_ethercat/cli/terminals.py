@@ -34,6 +34,7 @@ from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.esi.catalog import EsiCatalog
 from fastcs_ethercat.esi.model import CatalogEntry, EsiDevice, parse_esi_int
 from fastcs_ethercat.loopback import LOOPBACK
+from fastcs_ethercat.safe_names import file_in
 from fastcs_ethercat.terminals.esi_sources import (
     VENDOR_ZIP_URL,
     cached_zip,
@@ -331,7 +332,7 @@ def _generate_one(
     """Write one type's file; the line to print, or a UserError."""
     entry = catalog.find(requested, revision)
     name = entry.type_name
-    path = out / terminal_file_name(name)
+    path = file_in(out, terminal_file_name(name))
     if path.exists() and skip_existing and not force:
         return f"kept {path} ({name})"
     if path.exists() and not force:
@@ -680,7 +681,12 @@ def edit_command(
     target: TargetOption = None,
     ams_net_id: AmsNetIdOption = None,
     host: Annotated[
-        str, typer.Option("--host", help="Address to serve on.")
+        str,
+        typer.Option(
+            "--host",
+            help="Address to serve on (default loopback; any other address "
+            "needs the token printed at start, or $FASTCS_ETHERCAT_EDITOR_TOKEN).",
+        ),
     ] = LOOPBACK,
     port: Annotated[
         int, typer.Option("--port", help="Port to serve on (0: any free one).")
@@ -726,7 +732,7 @@ def import_command(
             failed.append(result.type_name)
             continue
         unplaced += len(result.problems)
-        path = out / terminal_file_name(result.type_name)
+        path = file_in(out, terminal_file_name(result.type_name))
         if path.exists() and not force:
             typer.echo(f"warning: {path} exists (--force overwrites it)", err=True)
             failed.append(result.type_name)

@@ -1,12 +1,14 @@
 """`fastcs-ethercat terminals edit`: serve the editor on one address.
 
 Binds 127.0.0.1 unless told otherwise and prints one ready line with its URL
-once the server listens. With `--target` the live terminals are read once at
+once the server listens; on another address every request needs a token (in
+that URL, see `gate`). With `--target` the live terminals are read once at
 start (the same discovery as the IOC's).
 """
 
 from __future__ import annotations
 
+import os
 import socket
 import sys
 from collections.abc import Callable, Sequence
@@ -62,8 +64,13 @@ def run_editor(
 
         live = read_once
 
+    from fastcs_ethercat.editor.gate import TokenGate, editor_token
+
+    token = editor_token(host, os.environ)
     port = port or free_port(host)
-    url = f"http://{host}:{port}/"
+    url = f"http://{host}:{port}/" + (f"?token={token}" if token else "")
+    if token is not None:
+        app.add_middleware(TokenGate, token=token)
 
     @ui.page("/")
     def _index() -> None:

@@ -16,6 +16,7 @@ from pathlib import Path
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.esi.catalog import EsiCatalog
 from fastcs_ethercat.esi.model import CatalogEntry
+from fastcs_ethercat.safe_names import file_in
 from fastcs_ethercat.terminals.esi_sources import open_catalog
 from fastcs_ethercat.terminals.files import read_terminal_file, terminal_file_name
 from fastcs_ethercat.terminals.generate import terminal_from_esi
@@ -109,7 +110,7 @@ class EditorSession:
         """Generate a type from the ESI into the directory (default choices)."""
         entry = self.catalog().find(type_name)
         name = entry.type_name
-        path = self.directory / terminal_file_name(name)
+        path = file_in(self.directory, terminal_file_name(name))
         if name in self.types or path.exists():
             raise UserError(f"{path.name} exists already", path=path)
         terminal = terminal_from_esi(self.catalog().load(name, entry.revision))

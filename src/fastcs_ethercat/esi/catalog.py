@@ -36,7 +36,7 @@ from fastcs_ethercat.collector import held
 from fastcs_ethercat.errors import UserError
 
 from .cache import CatalogCache, sha256_of
-from .device import describe, name_of, parse_device
+from .device import describe, identity_of, name_of, parse_device
 from .files import (
     EsiFileResult,
     device_elements,
@@ -157,6 +157,7 @@ def scan_document(data: bytes, name: str) -> _Scan:
                 if passive_name:
                     passive.append(passive_name)
                     continue
+                identity_of(device)  # raises what is wrong with the <Type>
                 raise fail(device, "<Type> lacks a name or ProductCode")
         except EsiFormatError as error:
             warnings.append(str(device_error(error, device, position, name)))

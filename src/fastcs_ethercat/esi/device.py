@@ -7,6 +7,8 @@ module (PDOs, dictionary, groups, oversampling).
 
 from __future__ import annotations
 
+from fastcs_ethercat.safe_names import is_type_name
+
 from .dictionary import parse_dictionary
 from .groups import derive_groups
 from .memo import ParseMemo, element_key
@@ -36,6 +38,12 @@ def identity_of(device: Element) -> tuple[str, int, int]:
     type_name = text_of(type_element)
     if not type_name:
         raise fail(type_element, "<Type> is empty")
+    if not is_type_name(type_name):
+        raise fail(
+            type_element,
+            f"<Type> {type_name[:40]!r} is not a terminal type name (letters, "
+            "digits and _.+- only)",
+        )
     product_code = int_attr(type_element, "ProductCode")
     if product_code is None:
         raise fail(type_element, f"<Type> of {type_name} has no ProductCode")

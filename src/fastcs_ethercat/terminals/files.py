@@ -9,7 +9,6 @@ rebuilds it from the ESI. Every problem a user can make in a file becomes one
 
 from __future__ import annotations
 
-import re
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -18,6 +17,7 @@ from pydantic import ValidationError
 
 from fastcs_ethercat.bounded import MAX_TERMINAL_YAML_BYTES, read_text_bounded
 from fastcs_ethercat.errors import UserError
+from fastcs_ethercat.safe_names import is_type_name
 from fastcs_ethercat.terminals.checks import check_terminal, terminal_problems
 from fastcs_ethercat.terminals.model import TerminalType
 from fastcs_ethercat.terminals.yaml_io import (
@@ -30,7 +30,6 @@ from fastcs_ethercat.terminals.yaml_io import (
 )
 
 CATIO_LAYOUT_KEY = "terminal_types"
-_TYPE_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.+-]*$")
 
 
 def read_text(path: Path) -> str:
@@ -67,7 +66,7 @@ def validate_terminals(
     terminals: dict[str, TerminalType] = {}
     for name, body in mapping.items():
         loc: Loc = (*prefix, name)
-        if not isinstance(name, str) or not _TYPE_NAME.match(name):
+        if not is_type_name(name):
             raise UserError(
                 f"{name!r} is not a terminal type name (like EL3104 or EL3356-0010)",
                 path=located.path,
@@ -109,5 +108,11 @@ def write_terminal_file(
 
 
 def terminal_file_name(type_name: str) -> str:
-    """`EL3104` -> `EL3104.yaml`: one file per terminal type."""
+    """`EL3104` -> `EL3104.yaml`: one file per terminal type; a name that is
+    not a type name (`../../x`, `/abs/x`) is refused before it is a path."""
+    if not is_type_name(type_name):
+        raise UserError(
+            f"{type_name[:80]!r} is not a terminal type name (like EL3104): "
+            "refused as a file name"
+        )
     return f"{type_name}.yaml"
