@@ -10,13 +10,14 @@ start does not pay for the ESI parser, terminal generation and rich.
 from __future__ import annotations
 
 import importlib
+import logging
 import sys
 from typing import TYPE_CHECKING, Any, Final
 
 import typer
 from typer.core import TyperCommand, TyperGroup
 
-from fastcs_ethercat import __version__, collector
+from fastcs_ethercat import __version__, collector, stop_signals
 from fastcs_ethercat.cli.bench import bench_command
 from fastcs_ethercat.cli.ioc import demo_command
 from fastcs_ethercat.cli.options import (
@@ -94,12 +95,17 @@ def _main(
 
 
 def run_cli(command: typer.Typer, prog_name: str | None = None) -> None:
-    """Run a Typer app; a `UserError` becomes one line on stderr and its exit code."""
+    """Run a Typer app; a `UserError` becomes one line on stderr and its exit
+    code; SIGTERM or SIGHUP at any moment a clean exit 0 (`stop_signals`)."""
+    stop_signals.install()
     try:
         command(prog_name=prog_name)
     except UserError as error:
         typer.echo(f"error: {error}", err=True)
         sys.exit(error.exit_code)
+    except stop_signals.Stopped as stopped:
+        logging.getLogger(__name__).info("stopped by %s", stopped)
+        sys.exit(0)
 
 
 def app() -> None:

@@ -78,14 +78,17 @@ def serve(
         access_security_file=config.access_security_file,
         read_only=config.read_only,
     )
-    run(
-        root,
-        config.prefix,
-        options,
-        on_ready=ready,
-        on_built=built,
-        on_pvs_built=prepare,
-    )
+    try:
+        run(
+            root,
+            config.prefix,
+            options,
+            on_ready=ready,
+            on_built=built,
+            on_pvs_built=prepare,
+        )
+    except asyncio.CancelledError:  # SIGTERM before FastCS serves (the PLC away)
+        logger.info("stopped before serving")
 
 
 def write_lists(root: RootController, config: IocConfig) -> None:

@@ -173,6 +173,10 @@ class Simulator:
             await asyncio.sleep(delay)
 
 
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+"""What stops the simulator cleanly (SIGHUP: its terminal closed)."""
+
+
 async def serve(
     target: RunnableTarget,
     config: SimulatorConfig,
@@ -180,7 +184,7 @@ async def serve(
     announce: Callable[[str], None] = lambda line: print(line, flush=True),
     exit_with_stdin: bool = False,
 ) -> None:
-    """Run until SIGINT or SIGTERM; announce the ready line once bound.
+    """Run until SIGINT, SIGTERM or SIGHUP; announce the ready line once bound.
 
     With `exit_with_stdin`, also stop when stdin reaches end of file: a parent
     that holds our stdin pipe (`SimProcess`) takes us down when it dies, even
@@ -189,7 +193,7 @@ async def serve(
     simulator = Simulator(target, config)
     stop = asyncio.Event()
     loop = asyncio.get_running_loop()
-    for signum in (signal.SIGINT, signal.SIGTERM):
+    for signum in STOP_SIGNALS:
         loop.add_signal_handler(signum, stop.set)
     stdin = sys.stdin.fileno() if exit_with_stdin else None
     if stdin is not None:
@@ -201,7 +205,7 @@ async def serve(
     finally:
         if stdin is not None:
             loop.remove_reader(stdin)
-        for signum in (signal.SIGINT, signal.SIGTERM):
+        for signum in STOP_SIGNALS:
             loop.remove_signal_handler(signum)
         await simulator.stop()
 
