@@ -163,6 +163,18 @@ def test_el3356_fixture(generated: dict[str, TerminalType]) -> None:
     assert "RMB Value (INT32)" in names and "RMB Value (Real)" in names
     real = el3356.symbol_nodes[names.index("RMB Value (Real)")]
     assert (real.type_name, real.selected) == ("REAL", False)
+    # The CoE objects as catio-terminals' data (from Beckhoff's ESI) has them.
+    settings = {o.index: o for o in el3356.coe_objects}[0x8000]
+    assert (settings.name, settings.bit_size) == ("RMB Settings", 448)
+    averager = {s.subindex: s for s in settings.sub_items}[0x03]
+    assert (averager.name, averager.type_name, averager.default_data) == (
+        "Mode0 enable averager",
+        "BOOL",
+        "01",
+    )
+    assert {0x8010, 0x801E, 0x801F, 0x8020, 0x802E, 0x802F} <= {
+        o.index for o in el3356.coe_objects
+    }
 
 
 def test_esi_file_names_drop_directories_and_zips() -> None:
