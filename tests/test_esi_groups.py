@@ -164,7 +164,7 @@ def test_el3356_0010_fixture_groups(catalog: EsiCatalog) -> None:
     device = catalog.load("EL3356-0010")
     assert device.default_group == "Standard (INT32)"
     assert groups(device)["Standard (REAL)"] == (0x1600, 0x1A00, 0x1A02)
-    assert groups(device)["Channel values (Compact)"] == (
+    assert groups(device)["2x AnalogIn (Compact)"] == (
         0x1600,
         0x1A00,
         0x1A04,
