@@ -4,10 +4,13 @@ while the target's connection still brings frames is slow, up to a limit."""
 from __future__ import annotations
 
 import asyncio
+import logging
 import time
 from dataclasses import dataclass, field
 
-from fastcs_ethercat.ioc.supervisor import LinkState, Probe, Supervisor
+import pytest
+
+from fastcs_ethercat.ioc.supervisor import Backoff, LinkState, Probe, Supervisor
 
 TIMEOUT_S = 0.02
 
@@ -95,3 +98,36 @@ async def test_an_answer_ends_the_slow_spell() -> None:
         await asyncio.sleep(0.03)
     assert time.monotonic() - started > 0.2
     assert link.calls == []  # each answer began a fresh spell
+
+
+async def test_an_online_change_after_a_loss_is_no_reconnect(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    """A loss ends with a reconnect (counted, its time from the loss); an
+    online change later is a resync: counted as one, logged with its own
+    time, never "after the loss" of the outage before."""
+    versions = [7, 8]
+    silent = [True]
+
+    async def probe() -> Probe:
+        if silent[0]:
+            silent[0] = False
+            await asyncio.sleep(10)
+        return Probe(5, versions[0])
+
+    link = RecordingLink()
+    watch = Supervisor(
+        probe, link, 7, probe_timeout_s=TIMEOUT_S, backoff=Backoff(first_s=0.01)
+    )
+    with caplog.at_level(logging.INFO):
+        await watch.step()  # lost, reconnected
+        after_loss = watch.stats.last_recovery_s
+        versions.pop(0)  # an online change
+        await watch.step()
+    lines = [r.getMessage() for r in caplog.records]
+
+    assert watch.stats.reconnects == 1 and watch.stats.resyncs == 1
+    assert watch.stats.last_recovery_s == after_loss
+    assert sum("after the loss" in line for line in lines) == 1
+    assert any("resolved again in" in line for line in lines), lines
+    assert watch.state is LinkState.CONNECTED

@@ -118,10 +118,12 @@ class SupervisorStats:
     probes: int = 0
     losses: int = 0
     reconnects: int = 0
+    """Outages ended: reconnects after a loss, RUN again after a stop."""
     resyncs: int = 0
+    """Symbols resolved again (online changes, a stop's end included)."""
     last_error: str = ""
     lost_at: float = 0.0
-    """time.monotonic() of the last loss."""
+    """time.monotonic() of the start of the outage under way (0: none)."""
     last_recovery_s: float = 0.0
 
 
@@ -251,14 +253,24 @@ class Supervisor:
     async def _resync(self, why: str) -> None:
         self._resync_wanted = ""
         logger.warning("target: %s: resolving every symbol again", why)
+        outage = self.stats.state is LinkState.STOPPED
         self.stats.state = LinkState.RESYNCING
+        started = time.monotonic()
         try:
             self.symbol_version = await self.link.resync(why)
         except Exception as error:
             await self._lose(f"resync failed: {type(error).__name__}: {error}")
             return
         self.stats.resyncs += 1
-        self._connected()
+        if outage:  # back in RUN: the end of an outage, like a reconnect
+            self.stats.reconnects += 1
+            self._connected()
+            return
+        self.stats.state = LinkState.CONNECTED
+        logger.info(
+            "target: every symbol resolved again in %.1f s: polling",
+            time.monotonic() - started,
+        )
 
     async def _lose(self, reason: str) -> None:
         stats = self.stats
@@ -297,9 +309,12 @@ class Supervisor:
             return
 
     def _connected(self) -> None:
+        """The end of an outage (a loss, a stop): measured from its start,
+        which is then forgotten (a later resync is no outage)."""
         stats = self.stats
         if stats.lost_at:
             stats.last_recovery_s = time.monotonic() - stats.lost_at
+            stats.lost_at = 0.0
         stats.state = LinkState.CONNECTED
         if self._first_contact:  # booted without it: the first answer
             self._first_contact = False
