@@ -35,7 +35,7 @@ FAULTS: list[tuple[str, dict[str, Any], float]] = [
     ("drop", {}, 0.0),
     ("stall", {"seconds": 2.0}, 2.0),
     ("refuse", {"seconds": 2.5}, 2.5),
-    ("error", {"code": 1793, "group": 0xF080}, 0.5),
+    ("error", {"code": 1800, "group": 0xF080}, 0.5),  # busy (0x701: no sums)
     ("slave_state", {"state": "PREOP", "name": "Term 5 (EL3104)"}, 1.5),
     ("online_change", {}, 0.5),
     ("stop", {}, 1.0),
