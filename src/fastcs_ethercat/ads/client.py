@@ -358,7 +358,9 @@ class AdsClient:
             if error.code not in NO_SUCH_SERVICE:
                 raise
             self._no_sums.add(group)
-            logger.warning(
+            logger.log(
+                # TwinCAT's EtherCAT device port has no sum writes: expected
+                logging.INFO if group == IndexGroup.SUMUP_WRITE else logging.WARNING,
                 "target %s has no %s (%s): single requests",
                 self.target,
                 _SUM_NAMES.get(group, f"sum 0x{group:X}"),
