@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 
 import pytest
 
+from fastcs_ethercat.ads.errors import AdsTimeoutError
 from fastcs_ethercat.ioc.supervisor import Backoff, LinkState, Probe, Supervisor
 
 TIMEOUT_S = 0.02
@@ -131,3 +132,32 @@ async def test_an_online_change_after_a_loss_is_no_reconnect(
     assert sum("after the loss" in line for line in lines) == 1
     assert any("resolved again in" in line for line in lines), lines
     assert watch.state is LinkState.CONNECTED
+
+
+async def test_the_clients_own_timeout_is_slow_while_frames_come() -> None:
+    """A probe that fails with the ADS client's timeout (shorter than the
+    probe's) while the target still sends is slow, as a probe timeout is;
+    lost once the limit has passed."""
+
+    async def probe() -> Probe:
+        raise AdsTimeoutError(0x745, "read state", "target")
+
+    link = RecordingLink()
+    watch = Supervisor(
+        probe,
+        link,
+        7,
+        probe_timeout_s=TIMEOUT_S,
+        heard_at=time.monotonic,
+        slow_limit_s=0.1,
+    )
+    await watch.step()
+    first = list(link.calls)
+    started = time.monotonic()
+    while not link.calls:
+        await watch.step()
+        await asyncio.sleep(0.01)
+
+    assert first == []
+    assert time.monotonic() - started >= 0.09
+    assert link.calls[0].startswith("lost: AdsTimeoutError")

@@ -7,7 +7,8 @@ work:
 - no answer in `probe_timeout` (or an ADS error): `lost`, then `reconnect`
   with growing pauses until it succeeds (the app closes and reopens its
   clients, discovers again and resumes polling). A probe that times out
-  while the target's connection still brings frames is slow, not lost (a
+  (its own timeout, or the ADS client's when that is shorter) while the
+  target's connection still brings frames is slow, not lost (a
   loaded host, ours or the PLC's): lost only once probes have gone
   unanswered for `SLOW_PROBE_LIMIT_S`;
 - the runtime not in RUN: `stopped` once; back in RUN: `resync`;
@@ -34,6 +35,7 @@ from enum import StrEnum
 from typing import Final, Protocol
 
 from fastcs_ethercat.ads.constants import AdsState
+from fastcs_ethercat.ads.errors import AdsTimeoutError
 from fastcs_ethercat.ads.ratelimit import RateLimitedLog
 
 logger = logging.getLogger(__name__)
@@ -201,9 +203,15 @@ class Supervisor:
         sent = time.monotonic()
         try:
             answer = await asyncio.wait_for(self.probe(), self.probe_timeout_s)
-        except TimeoutError:
+        except (TimeoutError, AdsTimeoutError) as error:
+            # the client's own timeout (shorter than the probe's) is no answer
+            # in time too: slow, not lost, while the target still sends
             if not self._slow(sent):
-                reason = f"no answer from the target in {self.probe_timeout_s} s"
+                reason = (
+                    f"no answer from the target in {self.probe_timeout_s} s"
+                    if isinstance(error, TimeoutError)
+                    else f"{type(error).__name__}: {error}"
+                )
                 await self._lose(reason)
             return
         except Exception as error:
