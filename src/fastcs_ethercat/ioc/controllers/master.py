@@ -10,8 +10,10 @@ The master owns everything between its ADS device and its attributes:
 - one `Poller` per poll rate, whose changes it posts straight to the
   attributes through `Health` (value path: poller -> decode -> master ->
   attribute -> publisher);
-- the write path of its outputs (`write`): checked, sent once by handle,
-  never queued; what the setpoints then show is `Setpoints`' call;
+- the write path of its outputs (`write`): checked, sent by handle, never
+  queued behind others; held through an online change and sent by the new
+  handle; of unknown outcome, read back once the target answers; what the
+  setpoints then show is `Setpoints`' call;
 - `use_plan`, which re-resolves every point by key after a new discovery
   (online change, reconnect).
 
