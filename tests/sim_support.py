@@ -186,6 +186,9 @@ class StandInTarget:
         self.forced_error = (code, group)
         self.calls.append(("force_error", (code, group)))
 
+    def set_sum_commands(self, served: bool) -> None:
+        self.calls.append(("set_sum_commands", (served,)))
+
     def fail_symbols(self, code: int, symbols: Sequence[str]) -> None:
         self.calls.append(("fail_symbols", (code, tuple(symbols))))
 

@@ -317,7 +317,7 @@ def test_faults_show_and_polling_recovers(demo: Demo) -> None:
     pv = demo.by_source(symbol, datatype="Int")
     state = p("ETH1:RIO1:MOD6:AlState")
     try:
-        demo.sim.add_fault("error", code=1793, group=0xF080)  # sum reads fail
+        demo.sim.add_fault("error", code=1800, group=0xF080)  # sum reads fail (busy)
         demo.sim.add_fault("slave_state", state="SAFEOP", name="Term 6 (EL2024)")
         errors = wait_for(lambda: _number(demo, "PollErrors") > 0, 10)
         safeop = wait_for(lambda: caget(demo.ioc, "-S", state)[state] == "SAFEOP", 10)

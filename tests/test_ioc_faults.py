@@ -300,8 +300,11 @@ def test_runtime_stop(rig: Rig) -> None:
 
 @pytest.mark.e2e
 def test_sum_read_error_alarms_and_recovers(rig: Rig) -> None:
+    """The sum read fails as a whole (0x708, device busy): every polled PV
+    alarms until it reads again. (0x701 would say the target has no sum
+    reads: the IOC would read them one by one instead.)"""
     start = time.monotonic()
-    rig.sim.add_fault("error", code=1793, group=0xF080)
+    rig.sim.add_fault("error", code=1800, group=0xF080)
     loss = rig.wait_invalid(SINE, start)
     cleared = time.monotonic()
     rig.sim.clear_faults()

@@ -195,17 +195,25 @@ async def test_a_readback_being_shown_does_not_undo_a_refused_write() -> None:
     assert output.shown()[1] == (9, 3, "WRITE: not written: target away")
 
 
-async def test_an_unknown_outcome_waits_for_the_readback() -> None:
+async def test_an_unknown_outcome_waits_for_the_write_paths_read_back() -> None:
+    """Neither a poll's readback nor a resync's `follow` ends an unknown
+    outcome: the write path reads the symbol back and decides."""
     output, health = Output(), Health()
     setpoints = Setpoints(health)
+    setpoints.follow([output.attribute])  # polling started
     await setpoints.unknown(output.attribute, 8, "outcome unknown: no answer")
     await _settled()
     unknown = output.shown()[1]
-    await health.post(output.attribute, 2)  # the write did not land after all
+    await health.post(output.attribute, 2)  # a poll, before the read back
+    setpoints.follow([output.attribute])  # a resync
+    await _settled()
+    kept = output.shown()[1]
+    await setpoints.failed(output.attribute, 8, "not written: the PLC holds 2")
     await _settled()
 
     assert unknown == (8, 3, "TIMEOUT: outcome unknown: no answer")
-    assert output.shown()[1] == (2, 0, "")
+    assert kept == unknown
+    assert output.shown()[1] == (8, 3, "WRITE: not written: the PLC holds 2")
 
 
 class Link:

@@ -4,10 +4,14 @@ while the target's connection still brings frames is slow, up to a limit."""
 from __future__ import annotations
 
 import asyncio
+import logging
 import time
 from dataclasses import dataclass, field
 
-from fastcs_ethercat.ioc.supervisor import LinkState, Probe, Supervisor
+import pytest
+
+from fastcs_ethercat.ads.errors import AdsTimeoutError
+from fastcs_ethercat.ioc.supervisor import Backoff, LinkState, Probe, Supervisor
 
 TIMEOUT_S = 0.02
 
@@ -95,3 +99,65 @@ async def test_an_answer_ends_the_slow_spell() -> None:
         await asyncio.sleep(0.03)
     assert time.monotonic() - started > 0.2
     assert link.calls == []  # each answer began a fresh spell
+
+
+async def test_an_online_change_after_a_loss_is_no_reconnect(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    """A loss ends with a reconnect (counted, its time from the loss); an
+    online change later is a resync: counted as one, logged with its own
+    time, never "after the loss" of the outage before."""
+    versions = [7, 8]
+    silent = [True]
+
+    async def probe() -> Probe:
+        if silent[0]:
+            silent[0] = False
+            await asyncio.sleep(10)
+        return Probe(5, versions[0])
+
+    link = RecordingLink()
+    watch = Supervisor(
+        probe, link, 7, probe_timeout_s=TIMEOUT_S, backoff=Backoff(first_s=0.01)
+    )
+    with caplog.at_level(logging.INFO):
+        await watch.step()  # lost, reconnected
+        after_loss = watch.stats.last_recovery_s
+        versions.pop(0)  # an online change
+        await watch.step()
+    lines = [r.getMessage() for r in caplog.records]
+
+    assert watch.stats.reconnects == 1 and watch.stats.resyncs == 1
+    assert watch.stats.last_recovery_s == after_loss
+    assert sum("after the loss" in line for line in lines) == 1
+    assert any("resolved again in" in line for line in lines), lines
+    assert watch.state is LinkState.CONNECTED
+
+
+async def test_the_clients_own_timeout_is_slow_while_frames_come() -> None:
+    """A probe that fails with the ADS client's timeout (shorter than the
+    probe's) while the target still sends is slow, as a probe timeout is;
+    lost once the limit has passed."""
+
+    async def probe() -> Probe:
+        raise AdsTimeoutError(0x745, "read state", "target")
+
+    link = RecordingLink()
+    watch = Supervisor(
+        probe,
+        link,
+        7,
+        probe_timeout_s=TIMEOUT_S,
+        heard_at=time.monotonic,
+        slow_limit_s=0.1,
+    )
+    await watch.step()
+    first = list(link.calls)
+    started = time.monotonic()
+    while not link.calls:
+        await watch.step()
+        await asyncio.sleep(0.01)
+
+    assert first == []
+    assert time.monotonic() - started >= 0.09
+    assert link.calls[0].startswith("lost: AdsTimeoutError")

@@ -489,3 +489,19 @@ def test_unknown_groups_on_the_device_port(probe: SimProbe) -> None:
     assert probe.read_write(IndexGroup.SYM_VERSION, 0, 1, b"").result == (
         AdsReturnCode.DEVICE_SERVICE_NOT_SUPPORTED
     )
+
+
+def test_the_masters_symbols_carry_the_device_name_as_terminals_carry_theirs() -> None:
+    """On the device port the master's own symbols are named after the device
+    (`Device 1 (EtherCAT).Inputs.Frm0State`) as a terminal's are after the
+    terminal (`Term 5 (EL3104).AI Compact Channel 1`): fastcs-catio's notes
+    of real hardware list them so, and its client prefixes every node's
+    relative name (`Inputs.Frm0State`, `Channel 1`) with that node's own name.
+    The bare relative name is no symbol."""
+    probe = device(demo_target())
+    full = probe.info_by_name("Device 1 (EtherCAT).Inputs.Frm0State")
+    bare = probe.info_by_name("Inputs.Frm0State")
+
+    assert full.result == AdsReturnCode.NO_ERROR
+    assert AdsSymbolEntry.decode(full.data).size == 2
+    assert bare.result == AdsReturnCode.DEVICE_SYMBOL_NOT_FOUND

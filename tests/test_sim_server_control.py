@@ -112,6 +112,17 @@ def test_faults_post_list_and_delete(sim: SimulatorThread) -> None:
     assert call(sim, "DELETE", "/faults") == (200, {"active": []})
 
 
+def test_the_fault_no_sum_commands_reaches_the_target(sim: SimulatorThread) -> None:
+    target = sim.simulator.target
+    assert isinstance(target, StandInTarget)
+    status, body = call(sim, "POST", "/faults", {"kind": "no_sum_commands"})
+    assert status == 200
+    assert body["active"] == [{"kind": "no_sum_commands"}]
+    assert ("set_sum_commands", (False,)) in target.calls
+    assert call(sim, "POST", "/faults", {"kind": "no_sum_commands", "x": 1})[0] == 400
+    assert call(sim, "DELETE", "/faults") == (200, {"active": []})
+
+
 def test_status_names_the_endpoints(sim: SimulatorThread) -> None:
     status, body = call(sim, "GET", "/status")
     assert status == 200

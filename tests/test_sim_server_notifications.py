@@ -132,6 +132,32 @@ def test_max_delay_batches_samples_into_one_frame_with_several_stamps(
     assert times == [0, 10 * MS, 20 * MS, 30 * MS]
 
 
+@pytest.mark.parametrize("max_delay_ms", [0, 1, 5, 9.9, 10, 15, 35])
+def test_no_sample_leaves_later_than_its_max_delay(
+    registry: Registry, max_delay_ms: float
+) -> None:
+    """A task cycle of 10 ms (the tick says when the next one comes): each
+    sample leaves at the last tick before its max delay ends, never after
+    (Beckhoff: "at the latest when this time has elapsed"); a max delay
+    below one cycle sends at the tick that took the sample."""
+    registry.add(add_request(cycle_ms=10, max_delay_ms=max_delay_ms))
+    late: list[float] = []
+    sent = 0
+    for t in range(0, 200, 10):
+        frames, _ = registry.registry.tick(
+            t * MS, WALL + t * MS, next_tick_ns=(t + 10) * MS
+        )
+        for frame in frames:
+            notification = DeviceNotification.decode(decode_packet(frame).payload)
+            for stamp in notification.stamps:
+                taken = (filetime_to_unix_ns(stamp.timestamp) - WALL) / MS
+                sent += 1
+                if t - taken > max_delay_ms:
+                    late.append(t - taken)
+    assert late == []
+    assert sent >= 200 // 10 - max_delay_ms // 10 - 1
+
+
 def test_samples_of_one_tick_share_a_stamp(registry: Registry) -> None:
     first = registry.add(add_request(offset=0))
     second = registry.add(add_request(offset=4, length=4))

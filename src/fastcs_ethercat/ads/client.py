@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from datetime import datetime
 from typing import Any, Final, TypeVar
@@ -49,6 +49,7 @@ from fastcs_ethercat.ads.constants import (
     AdsState,
     IndexGroup,
     TransmissionMode,
+    describe_return_code,
 )
 from fastcs_ethercat.ads.datatypes import AdsDataTypeEntry, decode_data_type_table
 from fastcs_ethercat.ads.errors import (
@@ -73,6 +74,7 @@ from fastcs_ethercat.ads.ratelimit import RateLimitedLog
 from fastcs_ethercat.ads.session import Answered
 from fastcs_ethercat.ads.sums import (
     SumReadItem,
+    SumReadLayout,
     SumReadRequest,
     SumReadResponse,
     SumReadWriteItem,
@@ -104,6 +106,21 @@ UPLOAD_INFO_2_SIZE: Final = 24
 UPLOAD_INFO_SIZE: Final = 8
 DATA_TYPE_TABLE_LIMIT: Final = 16 * 1024 * 1024
 """Read length of a data-type table whose size the target did not tell."""
+NO_SUCH_SERVICE: Final = frozenset(
+    {
+        AdsReturnCode.DEVICE_SERVICE_NOT_SUPPORTED,
+        AdsReturnCode.DEVICE_INVALID_GROUP,
+        AdsReturnCode.DEVICE_INVALID_OFFSET,
+    }
+)
+"""What a target answers a sum command it does not have: older TwinCAT 2,
+pcdshub's ads-async, fastcs-catio's simulator and pyads' test server answer
+0x701 (service not supported) or 0x702 / 0x703 (no such group or offset)."""
+_SUM_NAMES: Final = {
+    IndexGroup.SUMUP_READ: "sum reads (0xF080)",
+    IndexGroup.SUMUP_WRITE: "sum writes (0xF081)",
+    IndexGroup.SUMUP_READ_WRITE: "sum read-writes (0xF082)",
+}
 
 
 # -- results ----------------------------------------------------------------
@@ -211,6 +228,9 @@ class AdsClient:
         self._subscriptions: dict[int, _Subscription] = {}
         self._closed = False
         self._log = RateLimitedLog(logger)
+        self._no_sums: set[int] = set()
+        """Sum groups this target refused on this connection: their items go
+        as single requests until the connection is lost (decided once)."""
 
     @property
     def target(self) -> str:
@@ -321,12 +341,37 @@ class AdsClient:
 
     async def _sums(
         self,
-        requests: Iterable[SumReadRequest | SumWriteRequest | SumReadWriteRequest],
+        group: IndexGroup,
+        requests: Sequence[SumReadRequest | SumWriteRequest | SumReadWriteRequest],
         exact: bool = True,
-    ) -> list[bytes]:
-        """Every sum request as its ReadWrite (its sum group, the item count
-        as offset), all in flight at once."""
-        return await _all(self._read_write(r.to_read_write(), exact) for r in requests)
+    ) -> list[bytes] | None:
+        """Every sum request (of sum `group`) as its ReadWrite (the item count
+        as offset), all in flight at once; None where the target has no such
+        sum command (then the caller sends the items one by one)."""
+        if group in self._no_sums:
+            return None
+        try:
+            return await _all(
+                self._read_write(r.to_read_write(), exact) for r in requests
+            )
+        except AdsError as error:
+            if error.code not in NO_SUCH_SERVICE:
+                raise
+            self._no_sums.add(group)
+            logger.log(
+                # TwinCAT's EtherCAT device port has no sum writes: expected
+                logging.INFO if group == IndexGroup.SUMUP_WRITE else logging.WARNING,
+                "target %s has no %s (%s): single requests",
+                self.target,
+                _SUM_NAMES.get(group, f"sum 0x{group:X}"),
+                describe_return_code(error.code),
+            )
+            return None
+
+    @property
+    def single_requests(self) -> frozenset[int]:
+        """The sum groups this target refused (on this connection)."""
+        return frozenset(self._no_sums)
 
     # -- sum commands ----------------------------------------------------------
 
@@ -341,8 +386,31 @@ class AdsClient:
         """
         if not 0 < chunk_size <= MAX_SUM_SUB_COMMANDS:
             raise ValueError(f"chunk size must be 1..{MAX_SUM_SUB_COMMANDS}")
-        return await self._sums(
-            SumReadRequest(tuple(c)) for c in chunked(items, chunk_size)
+        chunks = [tuple(c) for c in chunked(items, chunk_size)]
+        answers = await self._sums(
+            IndexGroup.SUMUP_READ, [SumReadRequest(c) for c in chunks]
+        )
+        if answers is not None:
+            return answers
+        return [await self._single_reads(chunk) for chunk in chunks]
+
+    async def _single_reads(self, items: Sequence[SumReadItem]) -> bytes:
+        """The answer a 0xF080 sum read of `items` would give, from single
+        reads all in flight at once (a target without sum reads)."""
+
+        async def one(item: SumReadItem) -> tuple[int, bytes]:
+            try:
+                return AdsReturnCode.NO_ERROR, await self.read(
+                    item.index_group, item.index_offset, item.length
+                )
+            except AdsError as error:
+                if unreachable(error.code):
+                    raise
+                return error.code, b""
+
+        outcomes = await _all(one(item) for item in items)
+        return SumReadLayout.of(items).encode(
+            [result for result, _ in outcomes], [data for _, data in outcomes]
         )
 
     async def sum_read_items(
@@ -366,7 +434,9 @@ class AdsClient:
     ) -> list[tuple[int, bytes]]:
         """0xF082 in requests of at most 500: (result, data) per item."""
         requests = [SumReadWriteRequest(tuple(c)) for c in chunked(items)]
-        answers = await self._sums(requests, exact=False)
+        answers = await self._sums(IndexGroup.SUMUP_READ_WRITE, requests, exact=False)
+        if answers is None:
+            return await self._single_read_writes(items)
         outcomes: list[tuple[int, bytes]] = []
         for request, answer in zip(requests, answers, strict=True):
             response = self._decode(
@@ -378,6 +448,27 @@ class AdsClient:
             outcomes.extend(zip(response.results, response.data, strict=True))
         return outcomes
 
+    async def _single_read_writes(
+        self, items: Sequence[SumReadWriteItem]
+    ) -> list[tuple[int, bytes]]:
+        """(result, data) per item as single ReadWrites, all in flight at once."""
+
+        async def one(item: SumReadWriteItem) -> tuple[int, bytes]:
+            try:
+                return AdsReturnCode.NO_ERROR, await self.read_write(
+                    item.index_group,
+                    item.index_offset,
+                    item.read_length,
+                    item.data,
+                    exact=False,
+                )
+            except AdsError as error:
+                if unreachable(error.code):
+                    raise
+                return error.code, b""
+
+        return await _all(one(item) for item in items)
+
     async def sum_write(self, items: Sequence[SumWriteItem]) -> list[int]:
         """0xF081 in requests of at most 500: the result of each item.
 
@@ -385,11 +476,8 @@ class AdsClient:
         answers 0x701) gets the items as single writes, all in flight at once.
         """
         requests = [SumWriteRequest(tuple(c)) for c in chunked(items)]
-        try:
-            answers = await self._sums(requests)
-        except AdsError as error:
-            if error.code != AdsReturnCode.DEVICE_SERVICE_NOT_SUPPORTED:
-                raise
+        answers = await self._sums(IndexGroup.SUMUP_WRITE, requests)
+        if answers is None:
             return await self._single_writes(items)
         results: list[int] = []
         for request, answer in zip(requests, answers, strict=True):
@@ -581,10 +669,12 @@ class AdsClient:
     async def upload_symbols(self) -> SymbolTables:
         """The symbol table (0xF00B) and data-type table (0xF00E).
 
-        Their sizes come from 0xF00F (24 bytes); a target that does not
-        answer it, or answers fewer bytes (older TwinCAT), is asked 0xF00C
-        (8 bytes: symbol count and table size) and its data-type table is
-        read as far as it goes, or left empty if it has none.
+        Their sizes come from 0xF00F (24 bytes; a shorter answer is used for
+        the fields it has, at least the first 8: symbol count and table
+        size); a target that does not answer it, or answers fewer than 8
+        bytes, is asked 0xF00C (those 8 bytes alone); a data-type table whose
+        size is not known is read as far as it goes, or left empty if the
+        target has none.
         """
         info = await self._upload_info()
         symbols_raw = await self.read(IndexGroup.SYM_UPLOAD, 0, info.symbol_table_size)
@@ -624,6 +714,8 @@ class AdsClient:
         )
         if len(raw) >= UPLOAD_INFO_2_SIZE:
             return self._decode("symbol upload", lambda: SymbolUploadInfo2.decode(raw))
+        if len(raw) >= UPLOAD_INFO_SIZE:  # short, as some targets answer
+            return _short_upload_info(raw)
         old = await self.read(IndexGroup.SYM_UPLOAD_INFO, 0, UPLOAD_INFO_SIZE)
         info = self._decode("symbol upload", lambda: SymbolUploadInfo.decode(old))
         return SymbolUploadInfo2(info.symbol_count, info.symbol_table_size)
@@ -718,7 +810,9 @@ class AdsClient:
                     logger.exception("%s: notification callback failed", self)
 
     def connection_lost(self) -> None:
-        """The target forgot our notifications with the connection."""
+        """The target forgot our notifications with the connection; what it
+        serves is decided again on the next (it may be another target)."""
+        self._no_sums.clear()
         if self._subscriptions:
             logger.warning(
                 "%s: connection lost, %d notifications gone",
@@ -836,6 +930,14 @@ async def _all(awaitables: Any) -> list[Any]:
         if isinstance(result, BaseException):
             raise result
     return results
+
+
+def _short_upload_info(raw: bytes) -> SymbolUploadInfo2:
+    """A 0xF00F answer shorter than 24 bytes: its first 8 are what the upload
+    needs (symbol count and table size, all pyads and fastcs-catio read), the
+    data-type count and size follow where the answer has them."""
+    fields = [int(U32.unpack_from(raw, 4 * n)[0]) for n in range(len(raw) // 4)]
+    return SymbolUploadInfo2(*fields[:4])
 
 
 def _entry(data: bytes) -> AdsSymbolEntry:

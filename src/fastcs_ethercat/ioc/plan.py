@@ -97,6 +97,11 @@ class Point:
             return (self.type_name, self.byte_size)
         return (source.type_name or self.type_name, source.size or self.byte_size)
 
+    def __repr__(self) -> str:
+        """Short: FastCS logs a failed put with its attribute, whose reference
+        holds the point (every field would be a line of 1 000 characters)."""
+        return f"Point({self.symbol!r})"
+
 
 @dataclass(frozen=True, slots=True)
 class CoePoint:

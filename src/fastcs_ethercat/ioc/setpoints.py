@@ -9,17 +9,18 @@ without an alarm, a value the PLC does not hold:
 - a write that did not (refused, target away, an invalid handle, a value the
   type cannot hold): both show the value asked for, INVALID/WRITE, until a
   later write succeeds (the readback shows what the PLC holds meanwhile);
-- a write that timed out may have landed: the write path reads it back at
-  once (the readback decides: written or failed); if that is not answered
-  either, INVALID/TIMEOUT ("outcome unknown") until the next readback, which
-  the setpoint then shows;
+- a write whose outcome is unknown (no answer in time, the link lost while
+  it was in flight) may have landed: the write path reads it back as soon
+  as the target answers (at once, or after the reconnect) and the readback
+  decides (written or failed); meanwhile INVALID/TIMEOUT ("outcome
+  unknown");
 - at start, and after every reconnect and online change, INVALID/UDF until
   the first readback, which the setpoint then takes over; except a setpoint
   whose last write failed: it keeps INVALID/WRITE through resyncs and
   readbacks (a resync and its first readback can land between a refused put
   and the put's answer to the client, which must see the put fail), and one
-  whose last write's outcome is unknown keeps INVALID/TIMEOUT until the
-  readback decides.
+  whose last write's outcome is unknown keeps INVALID/TIMEOUT until its
+  read back decides.
 
 The alarms themselves are `Health`'s (setpoint problems); this decides which.
 """
@@ -60,11 +61,10 @@ class Setpoints:
             fastcs_adapter.watch_ca_puts(attribute, self.health.show_setpoint)
             fastcs_adapter.take_over_setpoints(attribute)
             status = self.health.setpoint_status(attribute)
-            if status is Status.WRITE:
-                continue  # held until a later write succeeds
-            if status is not Status.TIMEOUT:
-                self.health.setpoint_problem(attribute, Status.UDF, WAITING)
-                self.health.show_setpoint_soon(attribute)
+            if status in (Status.WRITE, Status.TIMEOUT):
+                continue  # until a later write succeeds, or the readback decides
+            self.health.setpoint_problem(attribute, Status.UDF, WAITING)
+            self.health.show_setpoint_soon(attribute)
             self.health.watch_value(attribute, self._from_plc)
 
     async def _from_plc(self, attribute: AttrR[Any, Any], value: Any) -> None:
@@ -81,10 +81,10 @@ class Setpoints:
         await self._show(attribute, value, Status.WRITE, why)
 
     async def unknown(self, attribute: AttrR[Any, Any], value: Any, why: str) -> None:
-        """A write of `value` whose outcome is unknown (neither it nor a read
-        back was answered): INVALID/TIMEOUT until the next readback, which
-        the setpoint then takes over."""
-        self.health.watch_value(attribute, self._from_plc)
+        """A write of `value` whose outcome is unknown (not answered, nor a
+        read back): INVALID/TIMEOUT until the write path has read it back
+        once the target answers again (then `written` or `failed`)."""
+        self.health.unwatch_value(attribute)
         await self._show(attribute, value, Status.TIMEOUT, why)
 
     async def _show(

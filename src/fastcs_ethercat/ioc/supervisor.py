@@ -7,7 +7,8 @@ work:
 - no answer in `probe_timeout` (or an ADS error): `lost`, then `reconnect`
   with growing pauses until it succeeds (the app closes and reopens its
   clients, discovers again and resumes polling). A probe that times out
-  while the target's connection still brings frames is slow, not lost (a
+  (its own timeout, or the ADS client's when that is shorter) while the
+  target's connection still brings frames is slow, not lost (a
   loaded host, ours or the PLC's): lost only once probes have gone
   unanswered for `SLOW_PROBE_LIMIT_S`;
 - the runtime not in RUN: `stopped` once; back in RUN: `resync`;
@@ -34,6 +35,7 @@ from enum import StrEnum
 from typing import Final, Protocol
 
 from fastcs_ethercat.ads.constants import AdsState
+from fastcs_ethercat.ads.errors import AdsTimeoutError
 from fastcs_ethercat.ads.ratelimit import RateLimitedLog
 
 logger = logging.getLogger(__name__)
@@ -118,10 +120,12 @@ class SupervisorStats:
     probes: int = 0
     losses: int = 0
     reconnects: int = 0
+    """Outages ended: reconnects after a loss, RUN again after a stop."""
     resyncs: int = 0
+    """Symbols resolved again (online changes, a stop's end included)."""
     last_error: str = ""
     lost_at: float = 0.0
-    """time.monotonic() of the last loss."""
+    """time.monotonic() of the start of the outage under way (0: none)."""
     last_recovery_s: float = 0.0
 
 
@@ -199,9 +203,15 @@ class Supervisor:
         sent = time.monotonic()
         try:
             answer = await asyncio.wait_for(self.probe(), self.probe_timeout_s)
-        except TimeoutError:
+        except (TimeoutError, AdsTimeoutError) as error:
+            # the client's own timeout (shorter than the probe's) is no answer
+            # in time too: slow, not lost, while the target still sends
             if not self._slow(sent):
-                reason = f"no answer from the target in {self.probe_timeout_s} s"
+                reason = (
+                    f"no answer from the target in {self.probe_timeout_s} s"
+                    if isinstance(error, TimeoutError)
+                    else f"{type(error).__name__}: {error}"
+                )
                 await self._lose(reason)
             return
         except Exception as error:
@@ -251,14 +261,24 @@ class Supervisor:
     async def _resync(self, why: str) -> None:
         self._resync_wanted = ""
         logger.warning("target: %s: resolving every symbol again", why)
+        outage = self.stats.state is LinkState.STOPPED
         self.stats.state = LinkState.RESYNCING
+        started = time.monotonic()
         try:
             self.symbol_version = await self.link.resync(why)
         except Exception as error:
             await self._lose(f"resync failed: {type(error).__name__}: {error}")
             return
         self.stats.resyncs += 1
-        self._connected()
+        if outage:  # back in RUN: the end of an outage, like a reconnect
+            self.stats.reconnects += 1
+            self._connected()
+            return
+        self.stats.state = LinkState.CONNECTED
+        logger.info(
+            "target: every symbol resolved again in %.1f s: polling",
+            time.monotonic() - started,
+        )
 
     async def _lose(self, reason: str) -> None:
         stats = self.stats
@@ -297,9 +317,12 @@ class Supervisor:
             return
 
     def _connected(self) -> None:
+        """The end of an outage (a loss, a stop): measured from its start,
+        which is then forgotten (a later resync is no outage)."""
         stats = self.stats
         if stats.lost_at:
             stats.last_recovery_s = time.monotonic() - stats.lost_at
+            stats.lost_at = 0.0
         stats.state = LinkState.CONNECTED
         if self._first_contact:  # booted without it: the first answer
             self._first_contact = False

@@ -25,6 +25,7 @@ Model (this package, sans-I/O) and I/O (`server`, `udp`, `control`,
     (`address_or_name=None`: every slave; `state`: "INIT", "PREOP",
     "SAFEOP", "OP" or the raw AL byte), `online_change(pdo_groups=None)`,
     `set_run_state(running)`, `force_error(code, group=None)`,
+    `set_sum_commands(served)` (False: 0xF080-0xF082 answer 0x701),
     `fail_symbols(code, symbols)` (reads touching those symbols fail, per
     item in a sum read; `sim.itemfaults`), `clear_faults()`,
     `get_symbol_value(name)`, `set_symbol_value(name, value)` (TwinCAT

@@ -67,6 +67,8 @@ class ControllableTarget(Protocol):
 
     def force_error(self, code: int, group: int | None = None) -> Any: ...
 
+    def set_sum_commands(self, served: bool) -> Any: ...
+
     def fail_symbols(self, code: int, symbols: Sequence[str]) -> Any: ...
 
     def clear_faults(self) -> Any: ...
@@ -232,6 +234,9 @@ class SimControl:
                 self._target.online_change(params.get("pdo_groups"))
             case FaultKind.STOP:
                 self._target.set_run_state(False)
+                self._model_faults.append(fault)
+            case FaultKind.NO_SUM_COMMANDS:
+                self._target.set_sum_commands(False)
                 self._model_faults.append(fault)
 
     # -- status ------------------------------------------------------------------

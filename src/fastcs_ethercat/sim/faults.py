@@ -2,7 +2,8 @@
 their parameters, shared by the HTTP control API and the Python API.
 
 Transport faults (drop, refuse, stall, error) are carried out by the server;
-model faults (slave state, link lost, online change, stop) by the target.
+model faults (slave state, link lost, online change, stop, no sum commands)
+by the target.
 """
 
 from __future__ import annotations
@@ -35,6 +36,11 @@ class FaultKind(StrEnum):
     version changes, old handles become invalid."""
     STOP = "stop"
     """Put the runtime into STOP (ReadState answers 6)."""
+    NO_SUM_COMMANDS = "no_sum_commands"
+    """Play a target without sum commands: 0xF080, 0xF081 and 0xF082 answered
+    0x701 (service not supported) on every port, as older TwinCAT 2, pcdshub's
+    ads-async, fastcs-catio's simulator and pyads' test server do; single
+    requests are served as ever."""
 
 
 class FaultError(ValueError):
@@ -151,7 +157,7 @@ def parse_fault(body: Any) -> Fault:
         ) from None
     params: dict[str, Any] = {}
     match kind:
-        case FaultKind.DROP | FaultKind.STOP:
+        case FaultKind.DROP | FaultKind.STOP | FaultKind.NO_SUM_COMMANDS:
             _check_known(body, set())
         case FaultKind.ONLINE_CHANGE:
             _check_known(body, {"pdo_groups"})

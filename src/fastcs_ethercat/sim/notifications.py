@@ -3,9 +3,10 @@
 A registration samples its value every cycle time (100 ns units, never more
 often than the simulator's task cycle); cyclic modes queue every sample,
 on-change modes only a value that differs from the last one queued. Queued
-samples wait at most their max delay, then every due sample of a connection
-leaves in one DeviceNotification frame per (server address, client address)
-pair, all frames of a tick in one transport write. Stamps are real FILETIMEs
+samples wait at most their max delay (a max delay ending before the next
+tick sends at this one), then every due sample of a connection leaves in one
+DeviceNotification frame per (server address, client address) pair, all
+frames of a tick in one transport write. Stamps are real FILETIMEs
 of the moment the value was sampled.
 
 The first value is sampled on the tick after the registration, never in the
@@ -168,18 +169,29 @@ class NotificationRegistry:
         self._batches.clear()
 
     def tick(
-        self, now_ns: int, wall_ns: int, *, send: bool = True
+        self,
+        now_ns: int,
+        wall_ns: int,
+        *,
+        send: bool = True,
+        next_tick_ns: int | None = None,
     ) -> tuple[list[bytes], int]:
         """Sample what is due; return (the frames due now, samples in them).
 
-        With `send` false (a stalled server) values are still sampled but
-        nothing is handed out; queued samples then leave on a later tick.
+        Due are the samples whose max delay ends by now, and, given the time
+        of the next tick, those whose max delay ends before it: held until
+        then they would leave late (Beckhoff: sent "at the latest when this
+        time has elapsed"), so a max delay below one task cycle sends at the
+        tick that sampled. With `send` false (a stalled server) values are
+        still sampled but nothing is handed out; queued samples then leave on
+        a later tick.
         """
         if self._subscriptions:
             self._sample(now_ns, filetime_from_unix_ns(wall_ns))
         if not send or not self._batches:
             return [], 0
-        return self._flush(now_ns)
+        due = now_ns if next_tick_ns is None else max(now_ns, next_tick_ns - 1)
+        return self._flush(due)
 
     def _sample(self, now_ns: int, filetime: int) -> None:
         stamps: dict[tuple[AmsAddress, AmsAddress], list[NotificationSample]] = {}

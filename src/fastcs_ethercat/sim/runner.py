@@ -162,7 +162,8 @@ class Simulator:
         while True:
             try:
                 self.target.tick(time.monotonic())
-                self.server.tick(time.monotonic_ns(), time.time_ns())
+                now_ns = time.monotonic_ns()
+                self.server.tick(now_ns, time.time_ns(), now_ns + int(period * 1e9))
             except Exception:
                 log.exception("task cycle failed")
             deadline += period

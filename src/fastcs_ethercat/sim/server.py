@@ -351,13 +351,21 @@ class AmsServer:
 
     # -- notifications -------------------------------------------------------------
 
-    def tick(self, now_ns: int | None = None, wall_ns: int | None = None) -> None:
-        """Sample every connection's notifications; push what is due."""
+    def tick(
+        self,
+        now_ns: int | None = None,
+        wall_ns: int | None = None,
+        next_tick_ns: int | None = None,
+    ) -> None:
+        """Sample every connection's notifications; push what is due (by the
+        next tick, when its time is given: nothing leaves late)."""
         now_ns = self._monotonic_ns() if now_ns is None else now_ns
         wall_ns = time.time_ns() if wall_ns is None else wall_ns
         send = not self._stalled
         for connection in list(self.connections):
-            frames, samples = connection.notifications.tick(now_ns, wall_ns, send=send)
+            frames, samples = connection.notifications.tick(
+                now_ns, wall_ns, send=send, next_tick_ns=next_tick_ns
+            )
             if frames:
                 self.counters.count_notifications(len(frames), samples)
                 connection.write(b"".join(frames))

@@ -18,6 +18,7 @@ from fastcs_ethercat.ads.constants import (
     AdsReturnCode,
     AmsCommand,
     AmsPort,
+    IndexGroup,
     device_port,
 )
 from fastcs_ethercat.ads.errors import AdsCodecError
@@ -53,6 +54,9 @@ _GROUP_COMMANDS: Final = (
     commands.ReadWriteRequest,
 )
 _AL_STATES: Final = {state.name: int(state) for state in AlState}
+_SUM_GROUPS: Final = frozenset(
+    {IndexGroup.SUMUP_READ, IndexGroup.SUMUP_WRITE, IndexGroup.SUMUP_READ_WRITE}
+)
 
 
 class SimTarget:
@@ -88,6 +92,8 @@ class SimTarget:
         self._ports: dict[AmsAddress, Port] = {}
         self._route()
         self._forced: tuple[int, int | None] | None = None
+        self.sum_commands = True
+        """False: 0xF080-0xF082 answered 0x701 (fault `no_sum_commands`)."""
         self._start: float | None = None
         self._cycle = -1
 
@@ -184,6 +190,12 @@ class SimTarget:
         return port.read(group, offset, length)
 
     def _forced_error(self, request: AdsRequest) -> int:
+        if (
+            not self.sum_commands
+            and isinstance(request, commands.ReadWriteRequest)
+            and request.index_group in _SUM_GROUPS
+        ):
+            return AdsReturnCode.DEVICE_SERVICE_NOT_SUPPORTED
         if self._forced is None:
             return 0
         code, group = self._forced
@@ -304,6 +316,10 @@ class SimTarget:
         """Answer every request (or those for one index group) with `code`."""
         self._forced = (int(code), group)
 
+    def set_sum_commands(self, served: bool) -> None:
+        """Serve sum commands (0xF080-0xF082), or answer them 0x701."""
+        self.sum_commands = served
+
     def fail_symbols(self, code: int, symbols: Sequence[str]) -> None:
         """Every read touching one of `symbols` answers `code` (per item in a
         sum read); unknown names raise KeyError and change nothing."""
@@ -315,6 +331,7 @@ class SimTarget:
         """Back to normal: no forced error, running, slaves in their chain
         states with links up, every input driven by its generator again."""
         self._forced = None
+        self.sum_commands = True
         for device in self.devices:
             device.read_errors.clear()
         self.set_run_state(True)

@@ -10,8 +10,10 @@ The master owns everything between its ADS device and its attributes:
 - one `Poller` per poll rate, whose changes it posts straight to the
   attributes through `Health` (value path: poller -> decode -> master ->
   attribute -> publisher);
-- the write path of its outputs (`write`): checked, sent once by handle,
-  never queued; what the setpoints then show is `Setpoints`' call;
+- the write path of its outputs (`write`): checked, sent by handle, never
+  queued behind others; held through an online change and sent by the new
+  handle; of unknown outcome, read back once the target answers; what the
+  setpoints then show is `Setpoints`' call;
 - `use_plan`, which re-resolves every point by key after a new discovery
   (online change, reconnect).
 
@@ -25,6 +27,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import time
 from collections import defaultdict
 from collections.abc import Awaitable, Callable, Mapping
 from dataclasses import dataclass, field
@@ -36,7 +39,6 @@ from fastcs.datatypes import Int, String
 from fastcs.methods import scan
 
 from fastcs_ethercat.ads.client import (
-    AdsClient,
     AdsError,
     AdsHandleInvalidError,
     AdsTimeoutError,
@@ -84,6 +86,11 @@ from fastcs_ethercat.ioc.tasks import cancel_and_wait
 logger = logging.getLogger(__name__)
 
 DIAGNOSTICS_PERIOD_S: Final = 1.0
+HOLD_S: Final = 2.0
+"""How long a write refused by an online change waits for the new handles."""
+HOLD_POLL_S: Final = 0.01
+SETTLE_POLL_S: Final = 0.05
+"""How often a write of unknown outcome looks whether the target answers."""
 CRC_EVERY: Final = 5
 """CRC counters take one read per slave: read them every 5th scan only."""
 MASTER_LEAVES: Final = (
@@ -211,12 +218,19 @@ class MasterController(Controller):
         """Point key -> the point as the target has it now (offsets move)."""
         self.symbol_port = plan.symbol_port
         """The device's ADS port as discovered last (sum reads and writes)."""
-        self.handles = PointHandles()
-        """The handles of the points polled now (taken when polling starts)."""
+        self.handles = self._no_handles = PointHandles()
+        """The handles of the points polled now (taken when polling starts;
+        `_no_handles` while none are: between a resync's two sets)."""
         self.setpoints = Setpoints(health)
         self._generation = 0
         """Counts the handle sets taken and given back: a write that failed
         on an older set asks for no resync (one is under way or done)."""
+        self._taken = 0
+        """Counts the handle sets taken (a held write waits for the next)."""
+        self._puts: dict[str, int] = {}
+        """Point key -> number of its latest put (a later one supersedes)."""
+        self._settling: dict[str, asyncio.Task[None]] = {}
+        """Point key -> the readback deciding its write of unknown outcome."""
         self._group_of: dict[str, PollGroup] = {}
         self._tasks: list[asyncio.Task[Any]] = []
         self.unserved: list[tuple[str, str]] = []
@@ -327,6 +341,7 @@ class MasterController(Controller):
             client, served, writes=not self.connection.read_only
         )
         self._generation += 1
+        self._taken += 1
         self._unreadable(served)
         self.setpoints.follow(
             a for k, a in self.shown_by_key.items()
@@ -378,7 +393,7 @@ class MasterController(Controller):
                 group.poller.stop()
         tasks, self._tasks = self._tasks, []
         await cancel_and_wait(tasks)
-        old, self.handles = self.handles.all(), PointHandles()
+        old, self.handles = self.handles.all(), self._no_handles
         self._generation += 1
         if (
             old
@@ -442,21 +457,38 @@ class MasterController(Controller):
     # -- writes --------------------------------------------------------------------
 
     async def write(self, point: Point, value: Any) -> None:
-        """One write from a client: checked, never queued, never repeated.
+        """One write from a client: checked, sent by the handle of the point's
+        symbol, never queued behind others.
 
-        Sent once by the handle of the point's symbol; refused while the IOC
-        is read-only or the target is away, and when the point has no
-        handle. Whatever did not reach the PLC is logged and raised (the
-        client's put fails) and its setpoints say so (`Setpoints`).
+        Refused while the IOC is read-only or the target is away, and when
+        the point has no handle. One refused because the symbol table changed
+        (an online change) is held until the master has resolved again, for
+        at most HOLD_S, and sent with the new handle if its symbol is still
+        there with its type and size; a later put on the same output
+        replaces it. One whose outcome is unknown (no answer, the link lost
+        while in flight) is read back once the target answers again, and the
+        readback decides. Whatever did not reach the PLC is logged and raised
+        (the client's put fails) and its setpoints say so (`Setpoints`).
         """
         attr = self.shown_by_key.get(point.key)
         shown = _fastcs_value(attr, engineering_value(point, value))
+        put = self._puts[point.key] = self._puts.get(point.key, 0) + 1
+        settling = self._settling.pop(point.key, None)
+        if settling is not None:
+            settling.cancel()  # this put decides the setpoint now
         try:
-            await self._deliver(point, value)
+            try:
+                await self._deliver(point, value, put)
+            except OutcomeUnknownError as unknown:
+                await self._decided_now(point, unknown)
+        except SupersededError as error:
+            logger.info("write of %r to %s: %s", value, point.symbol, error)
+            raise
         except OutcomeUnknownError as error:
             logger.error("write of %r to %s: %s", value, point.symbol, error)
             if attr is not None:
                 await self.setpoints.unknown(attr, shown, str(error))
+                self._settle_later(point, attr, shown, put, error.data)
             raise
         except Exception as error:
             why = _why(error)
@@ -469,50 +501,157 @@ class MasterController(Controller):
         if attr is not None:
             await self.setpoints.written(attr, shown)
 
-    async def _deliver(self, point: Point, value: Any) -> None:
+    async def _decided_now(self, point: Point, unknown: OutcomeUnknownError) -> None:
+        """A write not answered, read back at once where the target answers
+        (the target answers in order: the read sees the write if it landed);
+        raises `unknown` when it cannot say yet."""
+        now = await self._read_back(point, len(unknown.data))
+        if now is None:
+            raise unknown
+        if isinstance(now, str):
+            raise WriteError(f"no answer, and {now}") from unknown
+        if now != unknown.data:
+            raise WriteError(
+                "no answer, and the read back shows it was not applied"
+            ) from unknown
+        logger.warning("write to %s: no answer but applied (read back)", point.symbol)
+
+    async def _deliver(self, point: Point, value: Any, put: int) -> None:
+        """Send; while the symbol table is being resolved again (or a handle
+        answers that it changed), wait for the new handles and send again."""
+        if self.connection.read_only:
+            raise PermissionError("read-only IOC: no ADS writes")
+        deadline = time.monotonic() + HOLD_S
+        while True:
+            taken = self._taken
+            try:
+                await self._send(point, value)
+                return
+            except TableChangedError as error:
+                if not await self._resolved_since(taken, deadline):
+                    raise TableChangedError(
+                        f"{error}; not resolved again within {HOLD_S:g} s"
+                    ) from error.cause
+                if self._puts.get(point.key) != put:
+                    raise SupersededError("replaced by a later put") from None
+                logger.info("write to %s: sent again after resolving", point.symbol)
+
+    async def _send(self, point: Point, value: Any) -> None:
+        """One attempt by the current handle (TableChangedError: the table is
+        being resolved again, or the handle is no longer valid)."""
+        if self.connection.state is LinkState.RESYNCING:
+            raise TableChangedError("the symbol table is being resolved again")
         self.connection.check_writable(f"write to {point.symbol}")
         live = self.points.get(point.key)
         group = self._group_of.get(point.key)
         if live is None or group is None:
             raise LookupError(f"{point.symbol} is not on the target any more")
         handle = self.handles.writes.get(point.symbol)
-        if handle is None:
-            problem = self.handles.write_problem(point)
-            raise LookupError(f"{point.symbol}: {problem}")
+        if self.handles is self._no_handles:  # between two sets
+            raise TableChangedError("the symbol handles are being taken again")
+        problem = self.handles.write_problem(point) or self.handles.problems.get(
+            live.source_name
+        )  # its structure changed: no member of it is written
+        if handle is None or problem is not None:
+            raise LookupError(f"{point.symbol}: {problem or 'no handle'}")
         data = pack_write(live, value)
         generation = self._generation
         client = await self.connection.client(self.connection.net_id, self.symbol_port)
         try:
             await client.write_by_handle(handle, data)
-        except AdsHandleInvalidError:
+        except AdsHandleInvalidError as error:
             if generation == self._generation:
                 self.connection.resync(f"write to {point.symbol}: handle invalid")
-            raise
-        except AdsTimeoutError as error:
-            await self._confirm(client, handle, data, error)
-            logger.warning(
-                "write to %s timed out but was applied (read back)", point.symbol
-            )
+            raise TableChangedError(_why(error), error) from error
+        except AdsError as error:
+            if not unreachable(error.code):
+                raise
+            raise OutcomeUnknownError(
+                f"outcome unknown: {_no_answer(error)}; read back once the "
+                "target answers",
+                data,
+            ) from error
         if group.poller is not None:
             group.poller.invalidate()  # the readback shows what the PLC holds
 
-    async def _confirm(
-        self, client: AdsClient, handle: int, data: bytes, error: AdsTimeoutError
+    async def _resolved_since(self, taken: int, deadline: float) -> bool:
+        """Wait (until `deadline`) for a handle set taken after set `taken`
+        with the resolving over."""
+        while time.monotonic() < deadline:
+            if self._taken > taken and self.connection.state is not (
+                LinkState.RESYNCING
+            ):
+                return True
+            await asyncio.sleep(HOLD_POLL_S)
+        return False
+
+    def _settle_later(
+        self, point: Point, attr: AttrR[Any, Any], shown: Any, put: int, data: bytes
     ) -> None:
-        """A write that timed out may have landed: read the symbol back (the
-        target answers in order, so this read sees the write if it did)."""
+        task = asyncio.create_task(self._settle(point, attr, shown, put, data))
+        self._settling[point.key] = task
+        task.add_done_callback(
+            lambda t, key=point.key: (
+                self._settling.pop(key, None) if self._settling.get(key) is t else None
+            )
+        )
+
+    async def _settle(
+        self, point: Point, attr: AttrR[Any, Any], shown: Any, put: int, data: bytes
+    ) -> None:
+        """A write of unknown outcome: read its symbol back as soon as the
+        target answers (by the handle of the moment: a reconnect takes new
+        ones) and let the readback decide what the setpoints show. A later
+        put on the same output decides instead."""
+        while self._puts.get(point.key) == put:
+            now = await self._read_back(point, len(data))
+            if self._puts.get(point.key) != put:
+                return
+            if isinstance(now, str):
+                logger.error("write to %s: %s", point.symbol, now)
+                await self.setpoints.failed(attr, shown, f"not written: {now}")
+                return
+            if now is not None:
+                if now == data:
+                    logger.warning("write to %s: applied (read back)", point.symbol)
+                    await self.setpoints.written(attr, shown)
+                else:
+                    logger.error("write to %s: not applied (read back)", point.symbol)
+                    await self.setpoints.failed(
+                        attr, shown, "not written: the PLC holds another value"
+                    )
+                return
+            await asyncio.sleep(SETTLE_POLL_S)
+
+    async def _read_back(self, point: Point, size: int) -> bytes | str | None:
+        """The symbol's bytes now; None while the target cannot say (away,
+        resolving, no answer); why not, where it never will (gone, changed)."""
+        if not self.connection.connected:
+            return None
+        live = self.points.get(point.key)
+        if live is None:
+            return f"{point.symbol} is not on the target any more"
+        handle = self.handles.writes.get(point.symbol)
+        problem = self.handles.write_problem(point) or self.handles.problems.get(
+            live.source_name
+        )  # its structure changed: no member of it is written
+        if handle is None or problem is not None:
+            return (
+                None
+                if self.handles is self._no_handles
+                else f"{point.symbol}: {problem}"
+            )
         try:
-            now = await client.read_by_handle(handle, len(data))
-        except AdsError as again:
-            raise OutcomeUnknownError(
-                f"outcome unknown: no answer ({describe_return_code(error.code)}), "
-                f"nor to the read back ({describe_return_code(again.code)})"
-            ) from error
-        if now != data:
-            raise WriteError(
-                f"no answer ({describe_return_code(error.code)}), and the read "
-                "back shows it was not applied"
-            ) from error
+            client = await self.connection.client(
+                self.connection.net_id, self.symbol_port
+            )
+            return await client.read_by_handle(handle, size)
+        except AdsHandleInvalidError:
+            return None  # an online change: the resync takes new handles
+        except AdsError as error:
+            if unreachable(error.code):
+                return None
+            return f"read back refused ({describe_return_code(error.code)})"
 
     # -- diagnostics ---------------------------------------------------------------
 
@@ -584,20 +723,41 @@ def master_state_view(state: int) -> AlStateView:
 
 
 class OutcomeUnknownError(TimeoutError):
-    """A write neither answered nor readable back: it may have landed."""
+    """A write not answered (no answer in time, the link lost while it was in
+    flight): it may have landed. `data`: the bytes sent."""
+
+    def __init__(self, message: str, data: bytes) -> None:
+        super().__init__(message)
+        self.data = data
+
+
+class TableChangedError(RuntimeError):
+    """A write refused because the symbol table changed or is being resolved
+    again: held until the new handles are taken."""
+
+    def __init__(self, message: str, cause: Exception | None = None) -> None:
+        super().__init__(message)
+        self.cause = cause
+
+
+class SupersededError(RuntimeError):
+    """A held write that a later put on the same output replaced."""
 
 
 class WriteError(RuntimeError):
     """A write the target did not take."""
 
 
+def _no_answer(error: AdsError) -> str:
+    if isinstance(error, AdsTimeoutError):
+        return f"no answer ({describe_return_code(error.code)})"
+    return f"the link went while it was in flight ({describe_return_code(error.code)})"
+
+
 def _why(error: Exception) -> str:
     """Why a write failed, in a few words."""
     if isinstance(error, AdsHandleInvalidError):
-        return (
-            f"the symbol table changed ({describe_return_code(error.code)}); "
-            "resolving again"
-        )
+        return f"the symbol table changed ({describe_return_code(error.code)})"
     if isinstance(error, AdsError):
         return describe_return_code(error.code)
     return str(error) or type(error).__name__

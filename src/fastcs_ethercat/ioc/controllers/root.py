@@ -106,6 +106,7 @@ ROOT_LEAVES: Final = (
     "LastError",
     "ConnectionState",
     "Reconnects",
+    "Resyncs",
     "LastRecovery",
     "ChainChanges",
     "InvalidPvs",
@@ -442,7 +443,8 @@ class RootController(Controller):
         await post(a["PollErrors"], min(errors_total, 2**31 - 1))
         await post(a["LastError"], last_error[:200])
         await self.health.post(a["ConnectionState"], str(link.state))
-        await post(a["Reconnects"], min(link.reconnects + link.resyncs, 2**31 - 1))
+        await post(a["Reconnects"], min(link.reconnects, 2**31 - 1))
+        await post(a["Resyncs"], min(link.resyncs, 2**31 - 1))
         await post(a["LastRecovery"], link.last_recovery_s)
         await post(a["ChainChanges"], self.reconnection.chain_changes[:200])
         await post(a["InvalidPvs"], min(self.health.invalid_count, 2**31 - 1))
@@ -513,7 +515,8 @@ def _root_attributes(
             initial_value=LinkState.DISCONNECTED,
             description="Link to the target",
         ),
-        "Reconnects": AttrR(Int(), description="Reconnects and resyncs"),
+        "Reconnects": AttrR(Int(), description="Outages ended (reconnects)"),
+        "Resyncs": AttrR(Int(), description="Symbols resolved again"),
         "LastRecovery": _figure("s", 2, "Last outage, loss to poll"),
         "ChainChanges": AttrR(String(), description="Chain change at reconnect"),
         "InvalidPvs": AttrR(Int(), description="Attributes in INVALID alarm"),
