@@ -18,6 +18,7 @@ from typer.core import TyperCommand, TyperGroup
 
 from fastcs_ethercat import __version__, collector
 from fastcs_ethercat.cli.bench import bench_command
+from fastcs_ethercat.cli.init import init_command
 from fastcs_ethercat.cli.ioc import demo_command
 from fastcs_ethercat.cli.options import (
     DEFAULT_LOG_LEVEL,
@@ -69,6 +70,7 @@ _typer_app = plain_typer(
 _typer_app.command("demo")(demo_command)
 _typer_app.command("sim")(sim_command)
 _typer_app.command("bench")(bench_command)
+_typer_app.command("init")(init_command)
 
 
 def _version_callback(value: bool) -> None:
