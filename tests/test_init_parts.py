@@ -267,3 +267,13 @@ def test_nothing_is_left_beside_dir_when_a_step_fails(tmp_path: Path) -> None:
         layout.commit(folder, out)
     assert sorted(p.name for p in out.iterdir()) == ["ioc.yaml", "mine.txt"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["rack"]
+
+
+def test_a_check_of_a_dir_in_a_missing_folder_leaves_no_folder(tmp_path: Path) -> None:
+    out = tmp_path / "new" / "rack"
+
+    with layout.staging(out) as folder:
+        (folder / "ioc.yaml").write_text("whole")
+        assert layout.differences(out, folder) == ["added: ioc.yaml"]
+
+    assert list(tmp_path.iterdir()) == []

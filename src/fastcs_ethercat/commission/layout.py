@@ -68,6 +68,7 @@ def staging(out: Path) -> Iterator[Path]:
     """A folder beside `out` holding a copy of it; removed unless `commit`
     moved it into place."""
     parent = out.parent
+    made = [folder for folder in (parent, *parent.parents) if not folder.exists()]
     try:
         parent.mkdir(parents=True, exist_ok=True)
         folder = Path(tempfile.mkdtemp(prefix=f".{out.name}.init-", dir=parent))
@@ -80,6 +81,9 @@ def staging(out: Path) -> Iterator[Path]:
         yield folder
     finally:
         shutil.rmtree(folder, ignore_errors=True)
+        for created in made:  # deepest first; only while still empty
+            with contextlib.suppress(OSError):
+                created.rmdir()
 
 
 def commit(folder: Path, out: Path) -> None:
