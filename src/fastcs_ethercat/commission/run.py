@@ -116,7 +116,12 @@ def run_init(request: InitRequest, say: Say) -> Outcome:
         described=described,
         served=served,
         changes=changes,
-        decisions=decisions + _undescribed(described) + _config_notes(request),
+        decisions=[
+            *decisions,
+            *_undescribed(described),
+            *_unused(kept, described),
+            *_config_notes(request),
+        ],
         differences=differences,
         first_run=before is None,
     )
@@ -335,6 +340,18 @@ def _write_instance(folder: Path, settings: layout.Settings) -> None:
     if (folder / layout.TERMINALS_DIR).is_dir():
         shutil.copytree(folder / layout.TERMINALS_DIR, config / layout.TERMINALS_DIR)
     shutil.copyfile(folder / layout.CHAIN_FILE, config / layout.CHAIN_FILE)
+
+
+def _unused(kept: list[RegisteredTerminal], described: list[Described]) -> list[str]:
+    """DIR's YAML that no terminal on the rack uses now (left in place)."""
+    used = {d.file_name for d in described if d.slaves}
+    return [
+        f"{layout.TERMINALS_DIR}/{item.path.name}: no terminal on the rack uses "
+        f"{item.type_name} revision 0x{item.terminal.identity.revision_number:08x} "
+        "now; kept (delete it if it is gone for good)"
+        for item in kept
+        if item.path.name not in used
+    ]
 
 
 def _config_notes(request: InitRequest) -> list[str]:
