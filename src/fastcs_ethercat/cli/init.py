@@ -33,7 +33,9 @@ def init_command(
             "to ioc.yaml).",
         ),
     ],
-    prefix: Annotated[str, typer.Option("--prefix", help="PV prefix of the IOC.")],
+    prefix: Annotated[
+        str, typer.Option("--prefix", metavar="PREFIX", help="PV prefix of the IOC.")
+    ],
     esi: Annotated[
         list[Path],
         typer.Option(
