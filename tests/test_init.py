@@ -154,7 +154,7 @@ def test_init_gives_every_type_and_revision_its_own_yaml(first: Done) -> None:
     names = sorted(path.name for path in (first.out / "terminals").iterdir())
     assert names == [
         "EK1100.yaml", "EL1014.yaml", "EL1014_r00120000.yaml", "EL1084.yaml",
-        "EL1502.yaml", "EL2024.yaml", "EL3102.yaml",
+        "EL1502.yaml", "EL2024.yaml", "EL3102.yaml", "schema.json",
     ]  # fmt: skip
     registry = load_terminals([first.out / "terminals"])
     for slave in rack_slaves(load_chain(first.out / "chain.yaml")):
@@ -265,6 +265,9 @@ def test_check_reports_an_online_change_and_init_updates_only_it(
         assert made.result.returncode == 0, made.result.stderr[-2000:]
         el2024 = out / "terminals" / "EL2024.yaml"
         el2024.write_text("# outputs of the shutter crate\n" + el2024.read_text())
+        el3102 = out / "terminals" / "EL3102.yaml"
+        header, rest = el3102.read_text().split("\n", 1)
+        el3102.write_text(f"{header}\n# the beam position monitor\n{rest}")
         config = out / "ioc.yaml"
         config.write_text(
             config.read_text().replace("poll_rate_hz: 10", "poll_rate_hz: 5")
@@ -300,6 +303,7 @@ def test_check_reports_an_online_change_and_init_updates_only_it(
     )
     assert b"poll_rate_hz: 5" in after["ioc.yaml"]
     assert b"selected_pdo_group: Compact" in after["terminals/EL3102.yaml"]
+    assert b"\n# the beam position monitor\n" in after["terminals/EL3102.yaml"]
     changes = rack_changes(
         rack_slaves(parse_chain(edited["chain.yaml"].decode())),
         rack_slaves(parse_chain(after["chain.yaml"].decode())),

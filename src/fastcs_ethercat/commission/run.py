@@ -273,7 +273,10 @@ def _write_terminals(
     what a human must decide."""
     from fastcs_ethercat.terminals.files import terminal_file_text
     from fastcs_ethercat.terminals.saving import file_text
+    from fastcs_ethercat.terminals.schema import write_schema
 
+    (folder / layout.TERMINALS_DIR).mkdir(exist_ok=True)
+    write_schema(folder / layout.TERMINALS_DIR)  # the files' `$schema` line
     regrouped = {
         change.after.name: change.before.pdo_group
         for change in changes
