@@ -145,11 +145,11 @@ try:
 except SystemExit as exit:
     unused = ("fastcs_ethercat.cli.terminals", "fastcs_ethercat.esi",
               "fastcs_ethercat.terminals.generate", "rich",
-              "fastcs_ethercat.commission")
+              "fastcs_ethercat.commission", "fastcs_ethercat.cli.init")
     print(exit.code, *(name in sys.modules for name in unused))
 """
     done = subprocess.run(
         [sys.executable, "-c", probe], capture_output=True, text=True, check=False
     )
 
-    assert done.stdout.split() == ["2", *["False"] * 5], done.stderr
+    assert done.stdout.split() == ["2", *["False"] * 6], done.stderr

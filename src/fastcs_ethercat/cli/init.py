@@ -6,7 +6,8 @@
     fastcs-ethercat init --from-chain FILE --target HOST ...   (offline)
     fastcs-ethercat init ... --check      (report only; exit 1 if DIR differs)
 
-The work is `fastcs_ethercat.commission`'s, imported when the command runs.
+This module is imported only when `init` is named (`cli.COMMAND_GROUPS`),
+the work (`fastcs_ethercat.commission`) only when it runs.
 """
 
 from __future__ import annotations
@@ -20,9 +21,13 @@ from fastcs_ethercat.cli.options import (
     AmsNetIdOption,
     LogLevelOption,
     apply_log_level,
+    plain_typer,
 )
 
+init_app = plain_typer("Write a rack's IOC folder from the rack itself.")
 
+
+@init_app.command("init")
 def init_command(
     target: Annotated[
         str,
