@@ -118,9 +118,17 @@ def test_a_revision_is_described_by_shipped_yaml_else_its_own_esi_else_the_neare
     assert older.terminal is not None
     assert older.terminal.identity.revision_number == 0x00120000
     assert older.source.endswith("Beckhoff EL1xxx.xml:215")
-    assert newer.origin is Origin.NEAREST
+    assert newer.origin is Origin.NEAREST_YAML  # the shipped 0x00130000's
     assert newer.terminal is not None
     assert newer.terminal.identity.revision_number == 0x00130000
+    assert newer.source.endswith("EL1014.yaml")
+    esi_only = Describer([], [], lambda: build_catalog(ESI_SUBSET)).describe(
+        (BECKHOFF, EL1014, 0x00190000), [terminal_plan("Term 4 (EL1014)", EL1014, 0)]
+    )
+    assert esi_only.origin is Origin.NEAREST
+    assert esi_only.terminal is not None
+    assert esi_only.terminal.identity.revision_number == 0x00130000
+    assert "Beckhoff EL1xxx.xml:" in esi_only.source
 
 
 def test_a_type_nothing_describes_is_refused_only_with_process_data(

@@ -9,7 +9,8 @@ For each identity (vendor, product code, revision) on the rack, in order:
 3. the ESI's description of exactly that revision: generated, the usual
    default selection;
 4. the ESI's nearest revision of the product code (same variant first, the
-   older on a tie, as the IOC matches): generated, and said so;
+   older on a tie, as the IOC matches): its YAML in DIR or shipped, else
+   generated; said so either way;
 5. no ESI of the type, but a YAML of another revision (in DIR or shipped):
    that one serves it (the IOC matches it by name) and a human must decide;
 6. nothing describes it: a slave without process data (a power feed, an
@@ -51,6 +52,7 @@ class Origin(StrEnum):
     SHIPPED = "shipped"
     GENERATED = "generated from the ESI"
     NEAREST = "generated from the ESI's nearest revision"
+    NEAREST_YAML = "the YAML of the ESI's nearest revision"
     OTHER_YAML = "a YAML of another revision (no ESI of the type)"
     NONE = "no description"
 
@@ -138,6 +140,10 @@ class Describer:
         entry = self._esi_entry(identity)
         if entry is not None:
             exact = entry.revision == identity[2]
+            nearest = (identity[0], identity[1], entry.revision)
+            known = self._kept.get(nearest) or self._shipped.get(nearest)
+            if not exact and known is not None:  # its comments and choices
+                return self._copied(identity, known, Origin.NEAREST_YAML, slaves)
             terminal = self._generated(entry)
             return Described(
                 identity=identity,

@@ -21,6 +21,8 @@ def summary_lines(outcome: Outcome, out: Path, check: bool) -> Iterator[str]:
     yield f"rack: {count} terminals on {len(plan.masters)} master(s)"
     for item in outcome.described:
         shown = [] if item.origin in (Origin.KEPT, Origin.SHIPPED) else [item.source]
+        if item.origin is Origin.NEAREST_YAML and item.terminal is not None:
+            shown = [f"revision 0x{item.terminal.identity.revision_number:08x}"]
         if item.file_name is not None:
             shown.insert(0, f"{TERMINALS_DIR}/{item.file_name}")
         where = ", ".join(part for part in shown if part) or "-"
