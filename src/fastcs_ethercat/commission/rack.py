@@ -11,7 +11,6 @@ where another type now sits is a swap.
 
 from __future__ import annotations
 
-from collections import Counter
 from dataclasses import dataclass
 from enum import StrEnum
 from typing import TYPE_CHECKING
@@ -179,8 +178,3 @@ def _same_slave(before: RackSlave, after: RackSlave) -> list[RackChange]:
     if before.oversampling != after.oversampling:
         found.append(RackChange(ChangeKind.OVERSAMPLING, before, after))
     return found
-
-
-def type_counts(slaves: list[RackSlave]) -> Counter[str]:
-    """How many slaves of each type and revision (`RackSlave.identity`)."""
-    return Counter(slave.identity for slave in slaves)
