@@ -10,6 +10,8 @@ One module per step, each usable alone:
   in that YAML;
 - `layout`: the files of DIR (ioc.yaml, the services-repo instance), written
   in a folder beside DIR and moved into place;
+- `writing`: what goes into that folder (the YAML with the running group,
+  the chain, the configs, the instance);
 - `served`: what the IOC of DIR serves (PVs, screens, PV lists);
 - `run`: the steps in order, and the summary.
 """
