@@ -175,8 +175,10 @@ class StandInTarget:
     ) -> None:
         self.calls.append(("set_link_lost", (address_or_name, lost, device)))
 
-    def online_change(self, pdo_groups: Mapping[str, str] | None = None) -> None:
-        self.calls.append(("online_change", (pdo_groups,)))
+    def online_change(
+        self, pdo_groups: Mapping[str, str] | None = None, removed: Sequence[str] = ()
+    ) -> None:
+        self.calls.append(("online_change", (pdo_groups, tuple(removed))))
 
     def set_run_state(self, running: bool) -> None:
         self.running = running

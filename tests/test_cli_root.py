@@ -128,7 +128,7 @@ def test_root_help_lists_every_command_in_order_and_typos_get_a_suggestion() -> 
         text=True,
     )
 
-    names = ["demo", "sim", "bench", "terminals", "ioc", "chain"]
+    names = ["demo", "sim", "bench", "init", "terminals", "ioc", "chain"]
     assert listed == names
     assert typo.returncode == 2
     assert "Did you mean 'terminals'?" in typo.stderr
@@ -144,11 +144,12 @@ try:
     app()
 except SystemExit as exit:
     unused = ("fastcs_ethercat.cli.terminals", "fastcs_ethercat.esi",
-              "fastcs_ethercat.terminals.generate", "rich")
+              "fastcs_ethercat.terminals.generate", "rich",
+              "fastcs_ethercat.commission", "fastcs_ethercat.cli.init")
     print(exit.code, *(name in sys.modules for name in unused))
 """
     done = subprocess.run(
         [sys.executable, "-c", probe], capture_output=True, text=True, check=False
     )
 
-    assert done.stdout.split() == ["2", "False", "False", "False", "False"], done.stderr
+    assert done.stdout.split() == ["2", *["False"] * 6], done.stderr

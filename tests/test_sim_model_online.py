@@ -12,6 +12,7 @@ from fastcs_ethercat.ads.symbols import AdsSymbolEntry, decode_symbol_table
 from fastcs_ethercat.sim.probe import SimProbe
 from tests.test_sim_model_support import (
     EL1502_TWO_COUNTERS,
+    EL2024,
     EL3104_COMPACT,
     EL4134,
     demo_target,
@@ -123,3 +124,27 @@ def test_describe_shows_the_symbol_version() -> None:
     first = target.describe()["masters"][0]["symbol_version"]
     target.online_change()
     assert target.describe()["masters"][0]["symbol_version"] == first + 1
+
+
+def test_online_change_can_take_a_slave_off_the_bus() -> None:
+    target = demo_target()
+    probe = device(target)
+    name = f"{EL4134}.AO Output Channel 4"
+    target.set_symbol_value(name, 2024)
+    count = len(target.devices[0].ethercat.slaves)
+    assert probe.info_by_name(f"{EL2024}.Channel 1").result == 0
+
+    target.online_change(removed=[EL2024])
+
+    slaves = target.devices[0].ethercat.slaves
+    assert len(slaves) == count - 1
+    assert EL2024 not in [runtime.slave.name for runtime in slaves]
+    assert [runtime.slave.position for runtime in slaves] == list(range(count - 1))
+    gone = probe.info_by_name(f"{EL2024}.Channel 1")
+    assert gone.result == AdsReturnCode.DEVICE_SYMBOL_NOT_FOUND
+    fresh = probe.handle_of(name)
+    assert probe.read(IndexGroup.SYM_VALUE_BY_HANDLE, fresh, 2).data == struct.pack(
+        "<h", 2024
+    )
+    with pytest.raises(KeyError):
+        target.online_change(removed=["Term 99 (EL9999)"])

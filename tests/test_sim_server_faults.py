@@ -174,7 +174,7 @@ async def test_model_faults_reach_the_target_and_clear(simulator: Simulator) -> 
     assert target.calls == [
         ("set_slave_state", (1002, 2, None)),
         ("set_link_lost", ("Term 3 (EL1014)", True, None)),
-        ("online_change", ({"Term 2 (EL3104)": "Compact"},)),
+        ("online_change", ({"Term 2 (EL3104)": "Compact"}, ())),
         ("set_run_state", (False,)),
     ]
     assert [f["kind"] for f in control.faults()] == ["slave_state", "link_lost", "stop"]

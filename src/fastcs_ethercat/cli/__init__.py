@@ -33,12 +33,14 @@ if TYPE_CHECKING:  # Typer vendors Click; its groups' methods take these types
     from typer._click import Command, Context
 
 COMMAND_GROUPS: Final = {
+    "init": ("fastcs_ethercat.cli.init", "init_app"),
     "terminals": ("fastcs_ethercat.cli.terminals", "terminals_app"),
     "ioc": ("fastcs_ethercat.cli.ioc", "ioc_app"),
     "chain": ("fastcs_ethercat.cli.chain", "chain_app"),
 }
-"""Command group name -> (module, Typer app); `--help` lists them in this
-order, after the single commands."""
+"""Command (group) name -> (module, Typer app); `--help` lists them in this
+order, after the single commands. An app of one command and no callback is
+that command (`init`), any other a group."""
 
 
 class _NotImported(TyperCommand):
@@ -58,7 +60,7 @@ class _LazyGroups(TyperGroup):
         if isinstance(self.commands.get(cmd_name), _NotImported):
             module, attribute = COMMAND_GROUPS[cmd_name]
             app: typer.Typer = getattr(importlib.import_module(module), attribute)
-            self.commands[cmd_name] = typer.main.get_group(app)
+            self.commands[cmd_name] = typer.main.get_command(app)
         return super().get_command(ctx, cmd_name)
 
 

@@ -38,6 +38,7 @@ from fastcs_ethercat.ioc.discovery import discover
 from fastcs_ethercat.ioc.plan import SystemPlan
 from fastcs_ethercat.ioc.supervisor import Backoff
 from fastcs_ethercat.ioc.target import TargetError, prepare_target
+from fastcs_ethercat.terminals.model import TerminalType
 from fastcs_ethercat.terminals.registry import TerminalRegistry
 
 if TYPE_CHECKING:  # chain files are read only without the PLC or with `chain:`
@@ -91,13 +92,23 @@ async def chain_plan(
     from fastcs_ethercat.sim.inprocess import sim_clients
     from fastcs_ethercat.sim.target import SimTarget
 
-    target = SimTarget(chain, registry)
+    target = SimTarget(chain, registry, revisions=_by_revision(registry))
     async with sim_clients(target) as clients:
         plan = await discover(clients, registry, config, str(target.system_net_id))
     plan.offline_from = origin
     plan.device_name = plan.device_version = ""  # the PLC's, once it answers
     plan.symbol_version = 0
     return plan
+
+
+def _by_revision(registry: TerminalRegistry) -> dict[tuple[int, int], TerminalType]:
+    """Every YAML by (product code, revision): a chain's slave of another
+    revision than its type's first YAML is played from its own revision's."""
+    found: dict[tuple[int, int], TerminalType] = {}
+    for item in registry:
+        identity = item.terminal.identity
+        found[(identity.product_code, identity.revision_number)] = item.terminal
+    return found
 
 
 def chain_source(

@@ -61,7 +61,11 @@ class ControllableTarget(Protocol):
         self, address_or_name: int | str | None, lost: bool, device: int | None = None
     ) -> Any: ...
 
-    def online_change(self, pdo_groups: Mapping[str, str] | None = None) -> Any: ...
+    def online_change(
+        self,
+        pdo_groups: Mapping[str, str] | None = None,
+        removed: Sequence[str] = (),
+    ) -> Any: ...
 
     def set_run_state(self, running: bool) -> Any: ...
 
@@ -231,7 +235,9 @@ class SimControl:
                 )
                 self._model_faults.append(fault)
             case FaultKind.ONLINE_CHANGE:
-                self._target.online_change(params.get("pdo_groups"))
+                self._target.online_change(
+                    params.get("pdo_groups"), params.get("removed", ())
+                )
             case FaultKind.STOP:
                 self._target.set_run_state(False)
                 self._model_faults.append(fault)

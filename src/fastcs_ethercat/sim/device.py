@@ -5,7 +5,7 @@ changes."""
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass
 from typing import Any, Final
 
@@ -187,10 +187,19 @@ class SimDevice:
 
     # -- online change ----------------------------------------------------------
 
-    def online_change(self, pdo_groups: Mapping[str, str] | None = None) -> None:
+    def online_change(
+        self,
+        pdo_groups: Mapping[str, str] | None = None,
+        removed: Collection[str] = (),
+    ) -> None:
         """A new configuration: the symbol version changes, offsets move,
         handles taken before fail with 0x711; values of surviving symbols stay.
-        `pdo_groups` (slave name -> group) activates other PDO groups."""
+        `pdo_groups` (slave name -> group) activates other PDO groups; the
+        slaves named in `removed` leave the bus (the others keep their
+        addresses, names and states)."""
+        if removed:
+            self.master = _without(self.master, removed)
+            self.ethercat.keep_slaves(self.master)
         if pdo_groups:
             self.master = _with_groups(self.master, pdo_groups)
             self.ethercat.master = self.master
@@ -314,6 +323,18 @@ def _put_u16(buffer: bytearray, offset: int, value: int) -> None:
 def _below(leaf: str, name: str) -> bool:
     folded, key = leaf.casefold(), name.casefold()
     return folded == key or folded.startswith((f"{key}.", f"{key}["))
+
+
+def _without(master: ResolvedMaster, removed: Collection[str]) -> ResolvedMaster:
+    """`master` without the slaves named in `removed`, the rest moved up."""
+    kept = [slave for slave in master.slaves if slave.name not in removed]
+    return dataclasses.replace(
+        master,
+        slaves=tuple(
+            dataclasses.replace(slave, position=position)
+            for position, slave in enumerate(kept)
+        ),
+    )
 
 
 def _with_groups(

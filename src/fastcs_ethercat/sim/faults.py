@@ -32,8 +32,9 @@ class FaultKind(StrEnum):
     LINK_LOST = "link_lost"
     """Lose (`lost`: true, default) or restore the link of one slave (or all)."""
     ONLINE_CHANGE = "online_change"
-    """Activate a new configuration (optionally other `pdo_groups`): the symbol
-    version changes, old handles become invalid."""
+    """Activate a new configuration (optionally other `pdo_groups`, and without
+    the slaves named in `removed`): the symbol version changes, old handles
+    become invalid."""
     STOP = "stop"
     """Put the runtime into STOP (ReadState answers 6)."""
     NO_SUM_COMMANDS = "no_sum_commands"
@@ -123,6 +124,17 @@ def _pdo_groups(value: Any) -> dict[str, str]:
     return dict(value)
 
 
+def _slave_names(value: Any) -> list[str]:
+    """A non-empty list of slaves' TwinCAT names."""
+    if (
+        not isinstance(value, list | tuple)
+        or not value
+        or not all(isinstance(name, str) and name for name in value)
+    ):
+        raise FaultError('removed is a list of slave names, e.g. ["Term 7 (EL2024)"]')
+    return list(dict.fromkeys(value))
+
+
 def _symbols(value: Any) -> list[str]:
     """A non-empty list of TwinCAT symbol names (one name alone is accepted)."""
     names = [value] if isinstance(value, str) else value
@@ -160,9 +172,11 @@ def parse_fault(body: Any) -> Fault:
         case FaultKind.DROP | FaultKind.STOP | FaultKind.NO_SUM_COMMANDS:
             _check_known(body, set())
         case FaultKind.ONLINE_CHANGE:
-            _check_known(body, {"pdo_groups"})
+            _check_known(body, {"pdo_groups", "removed"})
             if body.get("pdo_groups") is not None:
                 params["pdo_groups"] = _pdo_groups(body["pdo_groups"])
+            if body.get("removed") is not None:
+                params["removed"] = _slave_names(body["removed"])
         case FaultKind.REFUSE:
             _check_known(body, {"seconds"})
             if "seconds" not in body:

@@ -94,6 +94,18 @@ class EtherCatMaster:
         self.running = True
         self.requested_state = int(AlState.OP)
 
+    def keep_slaves(self, master: ResolvedMaster) -> None:
+        """Follow a new configuration of fewer slaves (`master`'s, found by
+        name): the runtimes of those kept keep their states and counters."""
+        by_name = {runtime.slave.name: runtime for runtime in self.slaves}
+        self.master = master
+        self.slaves = []
+        for slave in master.slaves:
+            runtime = by_name[slave.name]
+            runtime.slave = slave
+            self.slaves.append(runtime)
+        self.by_address = {rt.slave.address: rt for rt in self.slaves}
+
     @staticmethod
     def _runtime(slave: ResolvedSlave) -> SlaveRuntime:
         coe = CoeDictionary.from_terminal(slave.terminal.coe_objects)

@@ -288,22 +288,30 @@ class SimTarget:
             owner.ethercat.slaves[slave.position].lost = lost
             owner.refresh_states()
 
-    def online_change(self, pdo_groups: Mapping[str, str] | None = None) -> None:
+    def online_change(
+        self,
+        pdo_groups: Mapping[str, str] | None = None,
+        removed: Sequence[str] = (),
+    ) -> None:
         """Activate a new configuration on every device: symbol version +1,
         offsets move, old handles answer 0x711. `pdo_groups` (slave name ->
-        group) switches PDO groups at the same time."""
+        group) switches PDO groups at the same time; the slaves named in
+        `removed` leave the configuration (a terminal taken off the rack)."""
         remaining = dict(pdo_groups or {})
+        leaving = set(removed)
         for device in self.devices:
             mine = {
                 name: group
                 for name, group in remaining.items()
                 if device.slave(name) is not None
             }
+            gone = {name for name in leaving if device.slave(name) is not None}
             for name in mine:
                 remaining.pop(name)
-            device.online_change(mine)
-        if remaining:
-            raise KeyError(f"no slaves called {sorted(remaining)}")
+            leaving -= gone
+            device.online_change(mine, gone)
+        if remaining or leaving:
+            raise KeyError(f"no slaves called {sorted({*remaining, *leaving})}")
         self._route()
 
     def set_run_state(self, running: bool) -> None:

@@ -51,6 +51,17 @@ def variant_of(revision: int) -> int:
     return revision & 0xFFFF
 
 
+def revision_distance(described: int, wanted: int) -> tuple[int, int, int]:
+    """How far revision `described` is from `wanted`, the smallest nearest:
+    another variant is farther than any revision of the same variant, the
+    older of two equally far revisions is nearer."""
+    return (
+        int(variant_of(described) != variant_of(wanted)),
+        abs((described >> 16) - (wanted >> 16)),
+        int(described > wanted),
+    )
+
+
 class TerminalRegistry:
     """Terminal types by name and identity; duplicates are user errors.
 
@@ -123,16 +134,12 @@ class TerminalRegistry:
         ]
         if not candidates:
             return None
-
-        def distance(item: RegisteredTerminal) -> tuple[int, int, int]:
-            described = item.terminal.identity.revision_number
-            return (
-                int(variant_of(described) != variant_of(revision)),
-                abs((described >> 16) - (revision >> 16)),
-                int(described > revision),
-            )
-
-        best = min(candidates, key=distance)
+        best = min(
+            candidates,
+            key=lambda item: revision_distance(
+                item.terminal.identity.revision_number, revision
+            ),
+        )
         exact = best.terminal.identity.revision_number == revision
         return self._match(best, revision, exact=exact)
 

@@ -1,0 +1,287 @@
+"""The parts of `init` that decide: what changed on the rack, which YAML
+describes a type and revision, the group it selects, the files' names and
+text. (The command against the simulator: `test_init.py`.)"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+
+from fastcs_ethercat.ads.ethercat import SlaveIdentity
+from fastcs_ethercat.commission import layout
+from fastcs_ethercat.commission.choices import running_choice, with_running
+from fastcs_ethercat.commission.rack import ChangeKind, RackSlave, rack_changes
+from fastcs_ethercat.commission.sources import (
+    Describer,
+    Origin,
+    discovery_registry,
+    file_names,
+)
+from fastcs_ethercat.errors import UserError
+from fastcs_ethercat.esi.catalog import build_catalog
+from fastcs_ethercat.ioc.config import load_ioc_config
+from fastcs_ethercat.ioc.plan import Point, PointKind, SlaveInfo, TerminalPlan
+from fastcs_ethercat.terminals.loader import load_terminals
+from tests.conftest import ESI_SUBSET, TERMINALS_DIR
+
+BECKHOFF = 2
+EL1014 = 0x03F63052
+EL3102 = 0x0C1E3052
+EL9999 = 0x270F3052
+
+
+BASE = RackSlave("Device 1 (EtherCAT)", 0, "", "EL2024", 0x00130000, None, None)
+
+
+def slave(name: str, position: int, type_name: str = "EL2024", **kw: Any) -> RackSlave:
+    return replace(BASE, name=name, position=position, type_name=type_name, **kw)
+
+
+def test_rack_changes_name_each_kind_of_change() -> None:
+    before = [
+        slave("Term 1 (EL2024)", 0),
+        slave("Term 2 (EL2024)", 1),
+        slave("Term 3 (EL3104)", 2, "EL3104", pdo_group="Standard"),
+        slave("Term 4 (EL3702)", 3, "EL3702", oversampling=10),
+        slave("Term 5 (EL2024)", 4),
+    ]
+    after = [
+        slave("Term 1 (EL2024)", 0, revision=0x00120000),
+        slave("Term 9 (EL2124)", 1, "EL2124"),
+        slave("Term 3 (EL3104)", 2, "EL3104", pdo_group="Compact"),
+        slave("Term 4 (EL3702)", 3, "EL3702", oversampling=5),
+        slave("Term 6 (EL1014)", 4, "EL1014"),
+        slave("Term 7 (EL1014)", 5, "EL1014"),
+    ]
+
+    changes = rack_changes(before, after)
+
+    assert [change.line() for change in changes] == [
+        "other revision: Term 1 (EL2024): EL2024 revision 0x00130000 -> "
+        "EL2024 revision 0x00120000",
+        "swapped: Term 2 (EL2024) (EL2024 revision 0x00130000) -> Term 9 (EL2124) "
+        "(EL2124 revision 0x00130000) on Device 1 (EtherCAT)",
+        "other PDO group: Term 3 (EL3104): 'Standard' -> 'Compact'",
+        "other oversampling: Term 4 (EL3702): 10 -> 5",
+        "swapped: Term 5 (EL2024) (EL2024 revision 0x00130000) -> Term 6 (EL1014) "
+        "(EL1014 revision 0x00130000) on Device 1 (EtherCAT)",
+        "added: Term 7 (EL1014) (EL1014 revision 0x00130000) on Device 1 (EtherCAT)",
+    ]
+    assert rack_changes(after, after) == []
+    [removed] = rack_changes(before, before[1:])
+    assert (removed.kind, removed.slave.name) == (ChangeKind.REMOVED, "Term 1 (EL2024)")
+
+
+def terminal_plan(
+    name: str, product: int, revision: int, *, typed: str | None = None,
+    group: str | None = None, points: int = 0,
+) -> TerminalPlan:  # fmt: skip
+    info = SlaveInfo(
+        address=1001,
+        name=name,
+        identity=SlaveIdentity(BECKHOFF, product, revision),
+        type_name=name.rsplit("(", 1)[-1].rstrip(")"),
+    )
+    plan = TerminalPlan(slave=info, terminal_type=typed, active_group=group)
+    plan.points = [
+        Point(f"k{n}", f"s{n}", f"a{n}", "BIT", PointKind.BIT, 0, 0, 1)
+        for n in range(points)
+    ]
+    return plan
+
+
+@pytest.fixture(scope="module")
+def describer() -> Describer:
+    shipped = list(load_terminals([TERMINALS_DIR]))
+    return Describer([], shipped, lambda: build_catalog(ESI_SUBSET))
+
+
+def test_a_revision_is_described_by_shipped_yaml_else_its_own_esi_else_the_nearest(
+    describer: Describer,
+) -> None:
+    shipped = describer.describe(
+        (BECKHOFF, EL1014, 0x00130000), [terminal_plan("Term 2 (EL1014)", EL1014, 0)]
+    )
+    older = describer.describe(
+        (BECKHOFF, EL1014, 0x00120000), [terminal_plan("Term 3 (EL1014)", EL1014, 0)]
+    )
+    newer = describer.describe(
+        (BECKHOFF, EL1014, 0x00190000), [terminal_plan("Term 4 (EL1014)", EL1014, 0)]
+    )
+
+    assert (shipped.origin, shipped.text is not None) == (Origin.SHIPPED, True)
+    assert older.origin is Origin.GENERATED
+    assert older.terminal is not None
+    assert older.terminal.identity.revision_number == 0x00120000
+    assert older.source.endswith("Beckhoff EL1xxx.xml:215")
+    assert newer.origin is Origin.NEAREST_YAML  # the shipped 0x00130000's
+    assert newer.terminal is not None
+    assert newer.terminal.identity.revision_number == 0x00130000
+    assert newer.source.endswith("EL1014.yaml")
+    esi_only = Describer([], [], lambda: build_catalog(ESI_SUBSET)).describe(
+        (BECKHOFF, EL1014, 0x00190000), [terminal_plan("Term 4 (EL1014)", EL1014, 0)]
+    )
+    assert esi_only.origin is Origin.NEAREST
+    assert esi_only.terminal is not None
+    assert esi_only.terminal.identity.revision_number == 0x00130000
+    assert "Beckhoff EL1xxx.xml:" in esi_only.source
+
+
+def test_a_type_nothing_describes_is_refused_only_with_process_data(
+    describer: Describer,
+) -> None:
+    identity = (BECKHOFF, EL9999, 0x00100000)
+    quiet = describer.describe(identity, [terminal_plan("Term 5 (EL9999)", EL9999, 0)])
+    assert quiet.origin is Origin.NONE
+
+    with pytest.raises(UserError) as refused:
+        describer.describe(
+            identity, [terminal_plan("Term 5 (EL9999)", EL9999, 0, points=2)]
+        )
+    assert str(refused.value).startswith(
+        "esi: no ESI description and no terminal YAML of EL9999 (product code "
+        "0x270f3052, revision 0x00100000; 1 on the rack, first Term 5 (EL9999))"
+    )
+
+
+def test_without_esi_of_the_type_a_yaml_of_another_revision_serves_it() -> None:
+    shipped = list(load_terminals([TERMINALS_DIR]))
+    empty = Describer([], shipped, lambda: build_catalog([]))
+
+    found = empty.describe(
+        (BECKHOFF, EL1014, 0x00120000), [terminal_plan("Term 3 (EL1014)", EL1014, 0)]
+    )
+
+    assert found.origin is Origin.OTHER_YAML
+    assert found.source.endswith("EL1014.yaml")
+
+
+def test_the_revision_most_terminals_run_gets_the_plain_file_name(
+    describer: Describer,
+) -> None:
+    one = describer.describe(
+        (BECKHOFF, EL1014, 0x00120000), [terminal_plan("Term 2 (EL1014)", EL1014, 0)]
+    )
+    many = describer.describe(
+        (BECKHOFF, EL1014, 0x00110000),
+        [terminal_plan(f"Term {n} (EL1014)", EL1014, 0) for n in (3, 4)],
+    )
+
+    file_names([one, many])
+
+    assert (one.file_name, many.file_name) == ("EL1014_r00120000.yaml", "EL1014.yaml")
+
+
+def test_yaml_already_in_dir_comes_before_the_shipped_one(tmp_path: Path) -> None:
+    (tmp_path / "EL1014.yaml").write_bytes((TERMINALS_DIR / "EL1014.yaml").read_bytes())
+    kept = list(load_terminals([tmp_path], use_cache=False))
+    shipped = list(load_terminals([TERMINALS_DIR]))
+
+    registry = discovery_registry(kept, shipped)
+    found = Describer(kept, shipped, lambda: build_catalog([])).describe(
+        (BECKHOFF, EL1014, 0x00130000), [terminal_plan("Term 2 (EL1014)", EL1014, 0)]
+    )
+
+    assert len(registry) == len(shipped)
+    match = registry.lookup(EL1014, 0x00130000)
+    assert match is not None and match.path == tmp_path / "EL1014.yaml"
+    assert (found.origin, found.file_name) == (Origin.KEPT, "EL1014.yaml")
+
+
+def test_the_group_most_terminals_run_is_selected_and_a_mix_is_named(
+    describer: Describer,
+) -> None:
+    described = describer.describe(
+        (BECKHOFF, EL3102, 0x00110000), [terminal_plan("Term 9 (EL3102)", EL3102, 0)]
+    )
+    terminal = described.terminal
+    assert terminal is not None and terminal.selected_pdo_group == "Standard"
+    slaves = [
+        terminal_plan(f"Term {n} (EL3102)", EL3102, 0x00110000, group=group)
+        for n, group in ((1, "Compact"), (2, "Compact"), (3, "Standard"))
+    ]
+
+    running = running_choice("EL3102", terminal, slaves)
+    chosen = with_running(terminal, running)
+
+    assert running.group == "Compact"
+    assert chosen.selected_pdo_group == "Compact"
+    [decision] = running.decisions
+    assert decision.startswith(
+        "EL3102: terminals run different PDO groups ('Compact' on 2, 'Standard' on 1)"
+    )
+    tie = running_choice("EL3102", terminal, slaves[1:])
+    assert tie.group == "Standard"  # the YAML's own choice on a tie
+    unknown = running_choice(
+        "EL3102", terminal, [replace(slaves[0], active_group=None)]
+    )
+    assert (
+        "run PDOs that none of the YAML's PDO groups describes" in unknown.decisions[0]
+    )
+
+
+@pytest.mark.parametrize("route", [False, True])
+def test_the_configs_init_writes_load_and_keep_secrets_out(
+    tmp_path: Path, route: bool
+) -> None:
+    settings = layout.Settings(
+        prefix="BL01T-EA-ECAT-01",
+        target="192.0.2.50:48898",
+        route_user="Administrator" if route else None,
+        password_env="TWINCAT_PASSWORD" if route else None,
+    )
+    (tmp_path / "ioc.yaml").write_text(layout.ioc_yaml(settings))
+    (tmp_path / "instance.yaml").write_text(layout.instance_ioc_yaml(settings))
+    values = yaml.safe_load(layout.values_yaml(settings))
+
+    config = load_ioc_config(tmp_path / "ioc.yaml")
+    instance = load_ioc_config(tmp_path / "instance.yaml")
+
+    assert (config.prefix, config.target) == ("BL01T-EA-ECAT-01", "192.0.2.50:48898")
+    assert config.terminal_dirs == (tmp_path / "terminals",)
+    assert config.chain == tmp_path / "chain.yaml"
+    assert instance.screens_dir == Path("/epics/opi")
+    if route:
+        assert config.route is not None and instance.route is not None
+        assert config.route.password_env == "TWINCAT_PASSWORD"
+        assert instance.route.password_file == Path(
+            "/run/secrets/twincat-route/password"
+        )
+        assert values["ioc-instance"]["volumes"][0]["secret"]["secretName"] == (
+            "bl01t-ea-ecat-01-route"
+        )
+    else:
+        assert config.route is None and "volumes" not in values["ioc-instance"]
+
+
+def test_nothing_is_left_beside_dir_when_a_step_fails(tmp_path: Path) -> None:
+    out = tmp_path / "rack"
+    out.mkdir()
+    (out / "mine.txt").write_text("mine")
+
+    with pytest.raises(RuntimeError), layout.staging(out) as folder:
+        (folder / "ioc.yaml").write_text("half")
+        raise RuntimeError("a step failed")
+
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["rack"]
+    assert [p.name for p in out.iterdir()] == ["mine.txt"]
+    with layout.staging(out) as folder:
+        (folder / "ioc.yaml").write_text("whole")
+        assert layout.differences(out, folder) == ["added: ioc.yaml"]
+        layout.commit(folder, out)
+    assert sorted(p.name for p in out.iterdir()) == ["ioc.yaml", "mine.txt"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["rack"]
+
+
+def test_a_check_of_a_dir_in_a_missing_folder_leaves_no_folder(tmp_path: Path) -> None:
+    out = tmp_path / "new" / "rack"
+
+    with layout.staging(out) as folder:
+        (folder / "ioc.yaml").write_text("whole")
+        assert layout.differences(out, folder) == ["added: ioc.yaml"]
+
+    assert list(tmp_path.iterdir()) == []
