@@ -76,6 +76,9 @@ def test_coe_objects_and_sub_indices(el3104: Path) -> None:
     off = run_cli("terminals", "coe", str(el3104), "--off", "0x8020:11", "0x8000",
                   "0x8010")  # fmt: skip
     assert off.code == 0, off.err
+    assert not any(o.selected for o in read_terminal_file(el3104)["EL3104"].coe_objects)
+    shipped = run_cli("terminals", "coe", str(el3104), "0x8000:06")  # its one
+    assert shipped.code == 0, shipped.err
     assert el3104.read_bytes() == (TERMINALS / "EL3104.yaml").read_bytes()
     bad = run_cli("terminals", "coe", str(el3104), "0x8000:99")
     assert bad.code == 2 and "has no sub-index 99" in bad.err
