@@ -89,9 +89,9 @@ def screenshots(request: pytest.FixtureRequest) -> Iterator[Path]:
     folder = Path(os.environ.get("FASTCS_ETHERCAT_SCREENSHOTS") or default)
     folder.mkdir(parents=True, exist_ok=True)
     yield folder
-    reporter = request.config.pluginmanager.get_plugin("terminalreporter")
-    if reporter is not None:
-        reporter.write_line(f"editor screenshots: {folder}")
+    capture = request.config.pluginmanager.get_plugin("capturemanager")
+    with capture.global_and_fixture_disabled() if capture else contextlib.nullcontext():
+        print(f"\neditor screenshots: {folder}")
 
 
 @contextlib.contextmanager

@@ -102,3 +102,16 @@ def test_the_ioc_never_imports_the_editor() -> None:
     )
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
+
+
+def test_without_esi_a_plain_clone_adds_types_from_the_subset_it_ships(
+    tmp_path: Path,
+) -> None:
+    """No `--esi` and no cached vendor zip: the checkout's ESI subset."""
+    folder = tmp_path / "terminals"
+    folder.mkdir()
+    with cache_home(tmp_path / "empty-cache"):
+        session = EditorSession(folder, None)
+        assert [e.type_name for e in session.search("EL4134")] == ["EL4134"]
+        added = session.add_type("EL3356-0010")  # from the fixture beside it
+        assert added.new and not (folder / "EL3356-0010.yaml").exists()
