@@ -9,6 +9,7 @@ started and the clients' caRepeater (they carry the test's token).
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -173,4 +174,8 @@ def test_demo_prints_lines_that_read_numbers_and_text_from_a_bare_shell(
     assert pv in pvget_out
     assert text_out.split() == [f"{prefix}:ETH1:RIO1:MOD5:AlStateText", "OP"]
     assert pv in names and len(names) > 400
+    readme = (REPO_ROOT / "README.md").read_text(encoding="utf-8")
+    examples = set(re.findall(r"\bDEMO(:[\w:]+\w)", readme))
+    assert README_COE_EXAMPLE in examples
+    assert sorted(e for e in examples if prefix + e not in names) == []
     assert listing.parent.stat().st_mode & 0o777 == 0o700
