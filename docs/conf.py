@@ -27,4 +27,5 @@ exclude_patterns = ["_build", "_ext", "README.md"]
 html_theme = "furo"
 html_title = f"fastcs-ethercat {__version__}"
 html_static_path: list[str] = []
-suppress_warnings = ["myst.header"]
+# a code block a lexer cannot read is shown plain: not worth failing the build
+suppress_warnings = ["myst.header", "misc.highlighting_failure"]

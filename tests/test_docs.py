@@ -3,12 +3,15 @@ generated reference misses no command or option of the CLI."""
 
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+import yaml
 
+from fastcs_ethercat.ioc.config import IocConfig
 from tests.conftest import REPO_ROOT
 
 sys.path.insert(0, str(REPO_ROOT / "docs" / "_ext"))
@@ -41,8 +44,6 @@ def test_the_cli_page_lists_every_command_and_option() -> None:
 
 
 def test_the_config_page_lists_every_key() -> None:
-    from fastcs_ethercat.ioc.config import IocConfig
-
     page = reference_pages.config_page()
     for key in IocConfig.model_fields:
         assert f"| `{key}` |" in page, key
@@ -64,3 +65,12 @@ def test_the_site_builds_with_warnings_as_errors(tmp_path: Path) -> None:
     assert "reference/generated/cli.html" in pages
     el3104 = (out / "reference/generated/terminals/EL3104.html").read_text()
     assert "C8000:EnableFilter" in el3104
+
+
+def test_the_readmes_example_config_is_valid() -> None:
+    readme = (REPO_ROOT / "README.md").read_text(encoding="utf-8")
+    section = readme.split("## An example", 1)[1]
+    found = re.search(r"```yaml\n(.+?)\n```", section, re.DOTALL)
+    assert found, "README: no YAML in 'An example'"
+    config = IocConfig.model_validate(yaml.safe_load(found.group(1)))
+    assert config.prefix == "BL21I-EA-ECAT-01" and config.route is not None
