@@ -273,17 +273,21 @@ SELECTED_COE_OBJECT = "ai_settings_8000"
 
 def terminals_with_coe(target: Path, leave_out: Sequence[str] = ()) -> Path:
     """A copy of the repository's terminal YAML in `target` with EL3104's
-    `SELECTED_COE_OBJECT` selected (the shipped files select no CoE), and
-    without the types in `leave_out` (served by the generic controller)."""
+    `SELECTED_COE_OBJECT` selected whole (the shipped file selects one of its
+    sub-indices, `Enable filter`), and without the types in `leave_out`
+    (served by the generic controller)."""
     target.mkdir()
-    unselected = f"    fastcs_name: {SELECTED_COE_OBJECT}\n    selected: false\n"
+    header = f"    fastcs_name: {SELECTED_COE_OBJECT}\n    selected: true\n"
     for path in TERMINALS_DIR.glob("*.yaml"):
         if path.stem in leave_out:
             continue
         text = path.read_text(encoding="utf-8")
         if path.stem == "EL3104":
-            assert unselected in text
-            text = text.replace(unselected, unselected.replace("false", "true"))
+            head, found, tail = text.partition(header)
+            assert found, f"EL3104 no longer selects {SELECTED_COE_OBJECT}"
+            block, next_object, rest = tail.partition("\n  - index:")
+            block = block.replace("      selected: false\n", "")
+            text = head + found + block + next_object + rest
         (target / path.name).write_text(text, encoding="utf-8")
     return target
 

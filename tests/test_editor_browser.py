@@ -29,6 +29,7 @@ from fastcs_ethercat.editor.pv_preview import preview_pvs
 from fastcs_ethercat.sim.process import SimProcess
 from fastcs_ethercat.terminals.files import read_terminal_file
 
+from .conftest import REPO_ROOT
 from .ioc_support import IOC_COMMAND, ioc_env, new_token, processes_with_token, stop_pid
 from .test_terminals_support import ESI, FIXTURE, TERMINALS, run_cli
 
@@ -49,6 +50,7 @@ if not ESI.is_dir():
 from selenium import webdriver  # noqa: E402
 from selenium.common.exceptions import (  # noqa: E402
     ElementClickInterceptedException,
+    ElementNotInteractableException,
     StaleElementReferenceException,
 )
 from selenium.webdriver.chrome.options import Options  # noqa: E402
@@ -59,6 +61,8 @@ from selenium.webdriver.remote.webelement import WebElement  # noqa: E402
 from selenium.webdriver.support.ui import WebDriverWait  # noqa: E402
 
 READY = "fastcs-ethercat terminals edit ready: url="
+WIDTH = 1280
+"""The narrowest window the pages must fit without scrolling sideways."""
 PREFIX = "TSTEDIT:ETH1:RIO1:MOD2"
 CHAIN = {
     "system": {"net_id": "127.0.0.1.1.1"},
@@ -79,10 +83,15 @@ def work(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 @pytest.fixture(scope="module")
-def screenshots(work: Path) -> Path:
-    folder = Path(os.environ.get("FASTCS_ETHERCAT_SCREENSHOTS") or work / "screens")
+def screenshots(request: pytest.FixtureRequest) -> Iterator[Path]:
+    """Where every page's screenshot is kept (printed at the end)."""
+    default = REPO_ROOT / "build" / "screenshots"
+    folder = Path(os.environ.get("FASTCS_ETHERCAT_SCREENSHOTS") or default)
     folder.mkdir(parents=True, exist_ok=True)
-    return folder
+    yield folder
+    capture = request.config.pluginmanager.get_plugin("capturemanager")
+    with capture.global_and_fixture_disabled() if capture else contextlib.nullcontext():
+        print(f"\neditor screenshots: {folder}")
 
 
 @contextlib.contextmanager
@@ -127,8 +136,9 @@ def driver() -> Iterator[Any]:
     options = Options()
     assert CHROMIUM is not None and CHROMEDRIVER is not None
     options.binary_location = CHROMIUM
+    size = f"--window-size={WIDTH},1000"
     for argument in ("--headless=new", "--no-sandbox", "--disable-gpu",
-                     "--disable-dev-shm-usage", "--window-size=1500,1100"):  # fmt: skip
+                     "--disable-dev-shm-usage", size):  # fmt: skip
         options.add_argument(argument)
     browser = webdriver.Chrome(service=Service(CHROMEDRIVER), options=options)
     try:
@@ -162,7 +172,11 @@ def wait(check: Callable[[], bool], timeout: float = 20) -> None:
         try:
             if check():
                 return
-        except (StaleElementReferenceException, ElementClickInterceptedException):
+        except (
+            StaleElementReferenceException,
+            ElementClickInterceptedException,
+            ElementNotInteractableException,  # an expansion still opening
+        ):
             pass
         assert time.monotonic() < deadline, "timed out"
         time.sleep(0.1)
@@ -252,8 +266,20 @@ def test_editor_session_matches_the_cli_and_the_ioc(
     add_from_search(driver, search, "EL3102")
     find(driver, "symbols")
     assert driver.current_url.endswith("/type/EL3102")
-    assert (folder / "EL3102.yaml").is_file()
+    assert "written when you save" in find(driver, "pending").text
+    assert find(driver, "state").text == "new, not saved"
+    assert not (folder / "EL3102.yaml").exists()  # nothing before Save
     driver.save_screenshot(str(screenshots / "02-added-EL3102.png"))
+    click(driver, "review")
+    wait(lambda: "selected_pdo_group: Standard" in find(driver, "diff").text)
+    click(driver, "save")
+    wait(lambda: find(driver, "state").text == "saved")
+    added = read_terminal_file(folder / "EL3102.yaml")["EL3102"]
+    default = added.default_group
+    assert default is not None and added.selected_pdo_group == default.name
+    assert [n.selected for n in added.symbol_nodes] == [
+        i in default.symbol_indices for i in range(len(added.symbol_nodes))
+    ]
 
     # a type that is not there is a message, not a traceback page
     driver.get(f"{editor}type/NOPE")
@@ -265,15 +291,24 @@ def test_editor_session_matches_the_cli_and_the_ioc(
     wait(lambda: find(driver, "state").text == "unsaved changes")
     assert "x 20 samples" in find(driver, "symbol-facts-1").text
     driver.save_screenshot(str(screenshots / "03-EL3702-factor.png"))
-    click(driver, "revert")
+    driver.get(editor)  # leave it unsaved: the index and the next visit say so
+    assert "EL3702" in find(driver, "pending").text
+    driver.get(f"{editor}type/EL3702")
+    assert "edits not saved yet" in find(driver, "pending").text
+    driver.save_screenshot(str(screenshots / "03b-EL3702-pending.png"))
+    click(driver, "discard")
     wait(lambda: find(driver, "state").text == "saved")
+    assert "x 10 samples" in find(driver, "symbol-facts-1").text
 
     driver.get(f"{editor}type/EL3104")
     choose(driver, "group", "Compact")
     wait(lambda: checked(find(driver, "symbol-1")))
     click(driver, "symbol-1")
     wait(lambda: not checked(find(driver, "symbol-1")))
+    assert checked(find(driver, "coe-0x8000"))  # shipped: 0x8000:06 alone
     click(driver, "coe-0x8000")
+    wait(lambda: not checked(find(driver, "coe-0x8000")))
+    click(driver, "coe-0x8000")  # on again: the whole object
     wait(lambda: checked(find(driver, "coe-0x8000")))
     prefix = field(driver, "prefix")
     prefix.send_keys(Keys.CONTROL, "a")
@@ -387,6 +422,7 @@ def test_units_and_severities_from_the_editor_match_the_cli(
     bytes as `terminals units` and `terminals severity` write."""
     folder = work / "terminals"
     driver.get(f"{editor}type/EL3124")
+    click(driver, "pdo-toggle-0")  # members are collapsed under their PDO
     click(driver, "meaning-toggle-0")
     members = lambda: find(driver, "members-0").text  # noqa: E731
     type_into(driver, "unit-0-8", "A", Keys.TAB)  # member 8: Value (4-20 mA)
@@ -396,7 +432,7 @@ def test_units_and_severities_from_the_editor_match_the_cli(
     type_into(driver, "offset-0-8", "0.004", Keys.TAB)
     wait(lambda: "x 4.8829e-07 +0.004 A" in members())
     error_minor = re.compile(r"Status\.Error\s+BIT\s+6\s+1\s+raw\s+minor")
-    choose(  # member 4: Status__Error
+    choose(  # member 4: Status.Error
         driver,
         "severity-0-4",
         "minor",
@@ -420,5 +456,81 @@ def test_units_and_severities_from_the_editor_match_the_cli(
     assert run_cli("terminals", "units", str(by_cli), symbol, "--unit", "A",
                    "--scale", "4.8829e-7", "--offset", "0.004").code == 0  # fmt: skip
     assert run_cli("terminals", "severity", str(by_cli), symbol, "minor",
-                   "--member", "Status__Error").code == 0  # fmt: skip
+                   "--member", "Status.Error").code == 0  # fmt: skip
     assert (folder / "EL3124.yaml").read_bytes() == by_cli.read_bytes()
+
+
+def _rows(driver: Any, prefix: str) -> list[str]:
+    """`data-row` of the shown rows whose `data-test` starts with `prefix`
+    (symbols: `symbol-`, CoE objects: `coe-0x`; not their sub-indices)."""
+    rows = driver.find_elements(By.CSS_SELECTOR, f'[data-test^="{prefix}"][data-row]')
+    return [row.get_attribute("data-row") or "" for row in rows]
+
+
+def _filter(driver: Any, text: str) -> None:
+    box = field(driver, "filter")
+    box.send_keys(Keys.CONTROL, "a")
+    box.send_keys(Keys.DELETE)
+    if text:
+        box.send_keys(text)
+
+
+def test_the_filter_narrows_elm3704s_lists_to_the_matching_rows(
+    editor: str, driver: Any, screenshots: Path
+) -> None:
+    """ELM3704-0000 has 54 symbols and 62 CoE objects: a word finds its rows."""
+    driver.get(f"{editor}type/ELM3704-0000")
+    find(driver, "symbols")
+    every_symbol, every_object = _rows(driver, "symbol-"), _rows(driver, "coe-0x")
+    assert len(every_object) == 62 and len(every_symbol) > 30
+
+    _filter(driver, "timestamp")
+    settings = [f"0x80{c}0 PAI Settings Ch.{c + 1}" for c in range(4)]
+    wait(lambda: _rows(driver, "coe-0x") == settings, 60)  # by a sub-index's name
+    wait(lambda: _rows(driver, "symbol-") == ["PAI Timestamp Channel {channel}"] * 2)
+    subs = driver.find_elements(By.CSS_SELECTOR, '[data-test^="coe-0x8000:"]')
+    assert [s.text for s in subs if s.is_displayed()] == [
+        "34 Timestamp Correction (DINT)"
+    ]  # the object opens on its one matching sub-index
+    driver.save_screenshot(str(screenshots / "09-ELM3704-filter.png"))
+
+    click(driver, "filter-state")  # the toggle's buttons: all, selected, ...
+    buttons = find(driver, "filter-state").find_elements(By.TAG_NAME, "button")
+    next(b for b in buttons if b.text.strip() == "selected").click()
+    wait(lambda: _rows(driver, "coe-0x") == ["0x8000 PAI Settings Ch.1"])  # selected
+    wait(lambda: _rows(driver, "symbol-") == ["PAI Timestamp Channel {channel}"])
+    next(b for b in buttons if b.text.strip() == "all").click()
+
+    _filter(driver, "underrange")  # a member: its symbol, opened on that row
+    wait(lambda: _rows(driver, "symbol-") == ["PAI Status Channel {channel}"])
+    wait(lambda: "Status.Underrange" in find(driver, "members-0").text)
+    assert "Status.Overrange" not in find(driver, "members-0").text
+    wait(lambda: _rows(driver, "coe-0x") == [])
+
+
+def _scrolls_sideways(driver: Any) -> bool:
+    return bool(
+        driver.execute_script(
+            "const e = document.documentElement;return e.scrollWidth > e.clientWidth;"
+        )
+    )
+
+
+def test_every_page_fits_1280_pixels_without_scrolling_sideways(
+    editor: str, driver: Any, screenshots: Path
+) -> None:
+    assert driver.execute_script("return window.innerWidth") == WIDTH
+    driver.get(editor)
+    find(driver, "types")
+    assert not _scrolls_sideways(driver)
+    for name in ("EL3104", "ELM3704-0000", "EL3702", "EL1502"):
+        driver.get(f"{editor}type/{name}")
+        find(driver, "symbols")
+        toggles = 'div[data-test^="pdo-toggle-"]'
+        first = driver.find_elements(By.CSS_SELECTOR, toggles)[0]
+        position = (first.get_attribute("data-test") or "").rpartition("-")[2]
+        click(driver, f"pdo-toggle-{position}")  # its members open, PVs included
+        members = f"members-{position}"
+        wait(lambda m=members: find(driver, m).is_displayed())
+        assert not _scrolls_sideways(driver), name
+        driver.save_screenshot(str(screenshots / f"10-{name}-{WIDTH}px.png"))

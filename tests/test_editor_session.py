@@ -56,7 +56,17 @@ def test_search_and_add_from_the_catalog(
         assert "EL4134" in by_words
         assert [e.type_name for e in session.search("EL3102")] == ["EL3102"]
         added = session.add_type("el3102")
-        assert added.name == "EL3102" and (session.directory / "EL3102.yaml").is_file()
+        path = session.directory / "EL3102.yaml"
+        assert added.name == "EL3102" and added.new and not path.exists()
+        default = added.current.default_group
+        assert default and added.current.selected_pdo_group == default.name
+        with pytest.raises(UserError, match=r"EL3102\.yaml exists already"):
+            session.add_type("EL3102")
+        session.revert("EL3102")  # discarded: gone, nothing written
+        assert "EL3102" not in session.types and not path.exists()
+        session.add_type("EL3102")
+        assert session.save("EL3102").changed and path.is_file()
+        assert not session.get("EL3102").new and not session.get("EL3102").changed
         with pytest.raises(UserError, match=r"EL3104\.yaml exists already"):
             session.add_type("EL3104")
 
@@ -64,11 +74,13 @@ def test_search_and_add_from_the_catalog(
 def test_the_preview_names_the_pvs_as_the_ioc_does() -> None:
     el3104 = read_terminal_file(TERMINALS / "EL3104.yaml")["EL3104"]
     pvs = [p.pv for p in preview_pvs(el3104, "EL3104", "DEMO:ETH1:RIO21:MOD22")]
-    assert len(pvs) == 40 and "DEMO:ETH1:RIO21:MOD22:CH1:Error" in pvs
+    assert len(pvs) == 41 and "DEMO:ETH1:RIO21:MOD22:CH1:Error" in pvs
+    assert "DEMO:ETH1:RIO21:MOD22:C8000:EnableFilter" in pvs  # the shipped CoE
     assert "DEMO:ETH1:RIO21:MOD22:CH1:ValueRaw" in pvs  # volts, and counts
     longest = "BL45P-MO-IOC-01-LONGER:ETH1:RIO1:MOD112"  # the longest prefix
     long = preview_pvs(el3104, "EL3104", longest)
-    assert all(p.longest <= 60 for p in long) and not any(p.shortened for p in long)
+    assert all(p.longest <= 60 for p in long)
+    assert not any(p.shortened for p in long if p.node is not None)  # symbols
     el1502 = read_terminal_file(TERMINALS / "EL1502.yaml")["EL1502"]
     counter = {
         p.source.rpartition(".")[2]: p for p in preview_pvs(el1502, "EL1502", longest)
@@ -90,3 +102,16 @@ def test_the_ioc_never_imports_the_editor() -> None:
     )
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
+
+
+def test_without_esi_a_plain_clone_adds_types_from_the_subset_it_ships(
+    tmp_path: Path,
+) -> None:
+    """No `--esi` and no cached vendor zip: the checkout's ESI subset."""
+    folder = tmp_path / "terminals"
+    folder.mkdir()
+    with cache_home(tmp_path / "empty-cache"):
+        session = EditorSession(folder, None)
+        assert [e.type_name for e in session.search("EL4134")] == ["EL4134"]
+        added = session.add_type("EL3356-0010")  # from the fixture beside it
+        assert added.new and not (folder / "EL3356-0010.yaml").exists()

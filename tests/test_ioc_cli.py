@@ -9,6 +9,7 @@ started and the clients' caRepeater (they carry the test's token).
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -21,9 +22,14 @@ from tests.processes import SESSION_VARIABLE, TOKEN_VARIABLE, new_token
 
 pytestmark = pytest.mark.e2e
 
-pytestmark = pytest.mark.e2e
-
 IOC = (sys.executable, "-m", "fastcs_ethercat")
+README_COE_EXAMPLE = ":ETH1:RIO21:MOD22:C8000:EnableFilter"
+"""The README's CoE example (below the prefix): the demo serves it."""
+
+
+def test_the_readme_names_the_coe_example() -> None:
+    readme = (REPO_ROOT / "README.md").read_text(encoding="utf-8")
+    assert f"DEMO{README_COE_EXAMPLE}" in readme
 
 
 def _run(
@@ -138,6 +144,7 @@ def test_demo_prints_lines_that_read_numbers_and_text_from_a_bare_shell(
     try:
         listed = demo.wait_for_line(r"^demo: \d+ PVs listed in ", 90)
         lines = [demo.wait_for_line(r"^demo: (try|text) ", 30) for _ in range(3)]
+        lines.append(lines[0].replace(":ETH1:RIO1:MOD5:CH1:Value", README_COE_EXAMPLE))
         bare_shell = {  # no EPICS settings but the session's one CA repeater
             "PATH": os.environ["PATH"],
             "HOME": str(tmp_path),
@@ -161,9 +168,14 @@ def test_demo_prints_lines_that_read_numbers_and_text_from_a_bare_shell(
         demo.stop()
 
     pv = f"{prefix}:ETH1:RIO1:MOD5:CH1:Value"
-    caget_out, pvget_out, text_out = outputs
+    caget_out, pvget_out, text_out, coe_out = outputs
+    assert coe_out.split() == [prefix + README_COE_EXAMPLE, "False"], coe_out
     assert caget_out.split()[0] == pv and -10.001 <= float(caget_out.split()[1]) <= 10
     assert pv in pvget_out
     assert text_out.split() == [f"{prefix}:ETH1:RIO1:MOD5:AlStateText", "OP"]
     assert pv in names and len(names) > 400
+    readme = (REPO_ROOT / "README.md").read_text(encoding="utf-8")
+    examples = set(re.findall(r"\bDEMO(:[\w:]+\w)", readme))
+    assert README_COE_EXAMPLE in examples
+    assert sorted(e for e in examples if prefix + e not in names) == []
     assert listing.parent.stat().st_mode & 0o777 == 0o700

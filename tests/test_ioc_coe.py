@@ -34,6 +34,8 @@ def el3104_points() -> dict[str, CoePoint]:
     terminal = terminal.model_copy(deep=True)
     for obj in terminal.coe_objects:
         obj.selected = True
+        for sub in obj.sub_items:  # the shipped file selects 0x8000:06 alone
+            sub.selected = True
     return {p.attribute: p for p in coe_points(terminal)}
 
 

@@ -314,9 +314,11 @@ def test_terminals_of_a_type_share_the_work_not_the_points(
 
 def test_coe_points_of_selected_objects(registry: TerminalRegistry) -> None:
     el3104 = registry.get("EL3104").terminal.model_copy(deep=True)
-    assert coe_points(el3104) == []
+    shipped = coe_points(el3104)  # the one sub-index the shipped file selects
+    assert [(p.index, p.subindex) for p in shipped] == [(0x8000, 0x06)]
     settings = next(o for o in el3104.coe_objects if o.index == 0x8000)
-    settings.selected = True
+    for sub in settings.sub_items:
+        sub.selected = True
     points = {p.attribute: p for p in coe_points(el3104)}
     gain = points["ai_settings_8000_user_calibration_gain"]
     assert (gain.index, gain.subindex, gain.type_name, gain.writable) == (

@@ -76,6 +76,9 @@ def test_coe_objects_and_sub_indices(el3104: Path) -> None:
     off = run_cli("terminals", "coe", str(el3104), "--off", "0x8020:11", "0x8000",
                   "0x8010")  # fmt: skip
     assert off.code == 0, off.err
+    assert not any(o.selected for o in read_terminal_file(el3104)["EL3104"].coe_objects)
+    shipped = run_cli("terminals", "coe", str(el3104), "0x8000:06")  # its one
+    assert shipped.code == 0, shipped.err
     assert el3104.read_bytes() == (TERMINALS / "EL3104.yaml").read_bytes()
     bad = run_cli("terminals", "coe", str(el3104), "0x8000:99")
     assert bad.code == 2 and "has no sub-index 99" in bad.err
@@ -167,7 +170,7 @@ def test_units_refused_in_one_line(el3104: Path) -> None:
     bits = run_cli("terminals", "units", str(el3104), "Nothing", "--unit", "V")
 
     assert several.code == 2 and several.err.count("\n") == 1
-    assert "has no member 'nope' (members: 'Status__Underrange'" in several.err
+    assert "has no member 'nope' (members: 'Status.Underrange'" in several.err
     assert zero.code == 2 and "scale: Value error, a scale of 0" in zero.err
     assert long.code == 2 and "longer than a record's EGU" in long.err
     assert bits.code == 2 and "no symbol 'Nothing'" in bits.err
@@ -176,7 +179,9 @@ def test_units_refused_in_one_line(el3104: Path) -> None:
 
 def test_severity_set_and_back_to_the_names(el3104: Path) -> None:
     minor = run_cli("terminals", "severity", str(el3104), STANDARD, "minor",
-                    "--member", "Status__Error")  # fmt: skip
+                    "--member", "Status.Error")  # fmt: skip
+    old_spelling = run_cli("terminals", "severity", str(el3104), STANDARD, "minor",
+                           "--member", "Status__Error")  # fmt: skip
     text = el3104.read_text(encoding="utf-8")
     back = run_cli("terminals", "severity", str(el3104), STANDARD, "default",
                    "--member", "status_error")  # fmt: skip
@@ -186,8 +191,9 @@ def test_severity_set_and_back_to_the_names(el3104: Path) -> None:
 
     assert minor.code == 0, minor.err
     assert minor.out == (
-        "EL3104: AI Standard Channel {channel}.Status__Error: minor (set)\n"
+        "EL3104: AI Standard Channel {channel}.Status.Error: minor (set)\n"
     )
+    assert old_spelling.out == minor.out
     assert "Over- or Underrange\n      severity: minor\n" in text
     assert back.code == 0 and back.out.endswith("major (from its name)\n")
     assert loud.code == 2 and "choose none, minor, major or default" in loud.err

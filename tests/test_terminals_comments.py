@@ -56,8 +56,8 @@ def test_choices_keep_comments_and_a_plain_file_stays_byte_identical(
     original = annotated((TERMINALS / "EL3104.yaml").read_text(encoding="utf-8"))
     path.write_text(original, encoding="utf-8")
     assert run_cli("terminals", "select-group", str(path), "Compact").code == 0
-    assert run_cli("terminals", "coe", str(path), "0x8000").code == 0
-    assert run_cli("terminals", "coe", str(path), "--off", "0x8000").code == 0
+    assert run_cli("terminals", "coe", str(path), "0x8010").code == 0
+    assert run_cli("terminals", "coe", str(path), "--off", "0x8010").code == 0
     assert run_cli("terminals", "select-group", str(path), "Standard").code == 0
     assert path.read_text(encoding="utf-8") == original
     plain = tmp_path / "EL1014.yaml"

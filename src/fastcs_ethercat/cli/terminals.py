@@ -260,6 +260,9 @@ def _describe(
             f"  {mark} {node.name_template}{channels}: {node.type_name}, "
             f"{node.bit_size} bits, {len(node.members)} members, {node.direction}{over}"
         )
+        if len(node.members) > 1:
+            names = ", ".join(member.shown_name for member in node.members)
+            lines.append(f"        members: {names}")
     if terminal.oversampling is not None:
         over = terminal.oversampling
         lines.append(
@@ -552,7 +555,8 @@ MemberOption = Annotated[
     str | None,
     typer.Option(
         "--member",
-        help="Member by ESI name ('Value', 'Status__Error') or fastcs_name; "
+        help="Member by name ('Value', 'Status.Error'; also 'Status__Error') or "
+        "fastcs_name; "
         "default: the symbol's one value (units) or status bit (severity).",
     ),
 ]
@@ -607,7 +611,7 @@ def units_command(
     overridden = [key for key in UNIT_CHOICES if getattr(chosen, key) is not None]
     if overridden:
         origin += f"; set here: {', '.join(overridden)}"
-    typer.echo(f"{name}: {node.name_template}.{chosen.name}: {served} ({origin})")
+    typer.echo(f"{name}: {node.name_template}.{chosen.shown_name}: {served} ({origin})")
 
 
 @terminals_app.command("severity")
@@ -645,7 +649,7 @@ def severity_command(
     node, chosen = _member_of(file, name, terminal, symbol, member, status=True)
     effective = member_severity(chosen, node.direction)
     how = "set" if chosen.severity is not None else "from its name"
-    typer.echo(f"{name}: {node.name_template}.{chosen.name}: {effective} ({how})")
+    typer.echo(f"{name}: {node.name_template}.{chosen.shown_name}: {effective} ({how})")
 
 
 def _read_one(file: Path, type_name: str | None) -> tuple[str, TerminalType]:

@@ -13,6 +13,7 @@ from typing import Any
 
 from nicegui import ui
 
+from fastcs_ethercat.editor.filters import FILTER_STATES, RowFilter
 from fastcs_ethercat.editor.live import LiveTerminal
 from fastcs_ethercat.editor.pv_preview import (
     EXAMPLE_PREFIX,
@@ -93,10 +94,23 @@ def index_page(session: EditorSession) -> None:
                 "group": terminal.selected_pdo_group or "-",
                 "symbols": f"{on} of {total}",
                 "coe": f"{coe_on} of {coe_total}",
-                "state": "unsaved" if edited.changed else "",
+                "state": "new, not saved"
+                if edited.new
+                else "unsaved"
+                if edited.changed
+                else "",
                 "description": terminal.description,
             }
         )
+    pending = sorted(name for name, edited in session.types.items() if edited.changed)
+    if pending:
+        _test(
+            ui.label(
+                f"Edits not saved yet: {', '.join(pending)} (open a type to "
+                "review and save, or discard)"
+            ),
+            "pending",
+        ).classes("text-warning")
     _add_type_panel(session)
     table = _test(ui.table(columns=columns, rows=rows, row_key="type"), "types")
     table.classes("w-full")
@@ -176,6 +190,9 @@ class _TypeView:
         self.prefix = EXAMPLE_PREFIX
         self.opened: set[int] = set()
         """Symbols whose units and severities are open (kept across redraws)."""
+        self.opened_pdos: set[int] = set()
+        """Symbols whose members are shown (collapsed otherwise)."""
+        self.filter = RowFilter()
 
     @property
     def terminal(self) -> TerminalType:
@@ -203,7 +220,41 @@ class _TypeView:
             _test(ui.button("Review and save", on_click=self._review), "review")
             _test(ui.button("Revert", on_click=self._revert).props("flat"), "revert")
             self.state = _test(ui.label(""), "state").classes(MUTED)
+        self.pending = ui.row().classes("items-center gap-4")
+        if self.edited.changed:
+            self._announce_pending()
+        self._filter_bar()
         self.body()
+
+    def _announce_pending(self) -> None:
+        """Edits made before this page opened (another tab, an earlier visit),
+        or a type added from the catalog: said once, with a way back."""
+        with self.pending:
+            text = (
+                "New type from the ESI catalog: its file is written when you save."
+                if self.edited.new
+                else "This type has edits not saved yet, made before this page "
+                "opened (another tab or an earlier visit)."
+            )
+            _test(ui.label(text), "pending").classes("text-warning")
+            discard = ui.button("Discard", on_click=self._revert).props("flat dense")
+            _test(discard, "discard")
+
+    def _filter_bar(self) -> None:
+        """Narrow the symbols, members and CoE objects to the matching rows."""
+        with ui.row().classes("items-center gap-4"):
+            box = ui.input("Filter symbols, members, CoE objects")
+            box.props("clearable debounce=500")  # one redraw per pause in typing
+            _test(box.classes("w-96"), "filter")
+            state = ui.toggle(list(FILTER_STATES), value=self.filter.state)
+            _test(state.props("dense no-caps"), "filter-state")
+
+        def changed() -> None:
+            self.filter = RowFilter(box.value or "", state.value or "all")
+            self.body.refresh()
+
+        box.on_value_change(changed)
+        state.on_value_change(changed)
 
     def _live_panel(self) -> None:
         assert self.live is not None
@@ -231,7 +282,13 @@ class _TypeView:
 
     @ui.refreshable_method
     def body(self) -> None:
-        self.state.text = "unsaved changes" if self.edited.changed else "saved"
+        self.state.text = (
+            "new, not saved"
+            if self.edited.new
+            else "unsaved changes"
+            if self.edited.changed
+            else "saved"
+        )
         if self.live is not None:
             self._live_panel()
         self._group_and_oversampling()
@@ -303,11 +360,21 @@ class _TypeView:
         ui.label("Symbols" + (f" of PDO group {group.name}" if group else "")).classes(
             "text-lg mt-4"
         )
-        shown = [
+        offered = [
             position
             for position in range(len(terminal.symbol_nodes))
             if not terminal.groups_of(position) or terminal.selectable(position)
         ]
+        shown = [
+            position
+            for position in offered
+            if self.filter.shows_symbol(terminal.symbol_nodes[position])
+        ]
+        if len(shown) < len(offered):
+            _test(
+                ui.label(f"{len(shown)} of {len(offered)} symbols match the filter"),
+                "symbols-count",
+            ).classes(MUTED)
         with _test(ui.column().classes("w-full gap-1"), "symbols"):
             for position in shown:
                 self._symbol_row(position, by_node.get(position, []))
@@ -322,6 +389,7 @@ class _TypeView:
         with ui.row().classes("w-full items-start gap-3 border-t pt-1"):
             box = ui.checkbox(node.name_template, value=node.selected)
             _test(box.classes("w-72 font-bold"), f"symbol-{position}")
+            box.props(f'data-row="{node.name_template}"')
             samples = self.terminal.sample_count(node)
             facts = (
                 f"{node.type_name} | {node.bit_size} bit"
@@ -329,7 +397,7 @@ class _TypeView:
                 + f" | channels {','.join(map(str, node.channels)) or '-'}"
                 + f" | {node.access}"
             )
-            label = ui.label(facts).classes("w-96 text-sm font-mono")
+            label = ui.label(facts).classes("w-80 text-sm font-mono")
             _test(label, f"symbol-facts-{position}")
             with ui.column().classes("gap-0"):
                 name = ui.input("fastcs_name", value=node.fastcs_name)
@@ -370,13 +438,14 @@ class _TypeView:
             if preview.channel == first:
                 pv_of.setdefault(preview.member, preview)
         whole = pv_of.get(None)
+        members = self.filter.members(node)
         rows = []
-        for member in node.members:
+        for member in members:
             preview = pv_of.get(member.name) or whole
             scaling = member_scaling(member)
             rows.append(
                 {
-                    "member": member.name.replace("__", "."),
+                    "member": member.shown_name,
                     "type": member.type_name,
                     "offset": member.bit_offset,
                     "bits": member.bit_size,
@@ -397,18 +466,38 @@ class _TypeView:
                 ("pv", f"PV (channel {first})" if first is not None else "PV"),
             )
         ]
-        table = ui.table(columns=columns, rows=rows).props("dense flat")
-        _test(table.classes("w-full ml-10 text-xs"), f"members-{position}")
-        expansion = ui.expansion(
-            "Units and alarm severities", value=position in self.opened
-        ).classes("ml-10")
-        _test(expansion, f"meaning-toggle-{position}")
-        expansion.on_value_change(
-            lambda e: (self.opened.add if e.value else self.opened.discard)(position)
+        title = f"{len(node.members)} members" + (
+            f", {len(members)} match the filter"
+            if len(members) < len(node.members)
+            else ""
         )
-        with expansion, _test(ui.column().classes("gap-1"), f"meaning-{position}"):
-            for index, member in enumerate(node.members):
-                self._member_meaning(position, node, index, member)
+        pdo = ui.expansion(
+            title,
+            value=position in self.opened_pdos
+            or (self.filter.narrows and len(members) < len(node.members)),
+        ).classes("w-full pl-8")
+        _test(pdo.props("dense"), f"pdo-toggle-{position}")
+        pdo.on_value_change(
+            lambda e: (self.opened_pdos.add if e.value else self.opened_pdos.discard)(
+                position
+            )
+        )
+        with pdo:
+            table = ui.table(columns=columns, rows=rows).props("dense flat wrap-cells")
+            _test(table.classes("w-full text-xs"), f"members-{position}")
+            expansion = ui.expansion(
+                "Units and alarm severities", value=position in self.opened
+            )
+            _test(expansion.classes("w-full"), f"meaning-toggle-{position}")
+            expansion.on_value_change(
+                lambda e: (self.opened.add if e.value else self.opened.discard)(
+                    position
+                )
+            )
+            with expansion, _test(ui.column().classes("gap-1"), f"meaning-{position}"):
+                for index, member in enumerate(node.members):
+                    if member in members:
+                        self._member_meaning(position, node, index, member)
 
     def _member_meaning(
         self, position: int, node: SymbolNode, index: int, member: SymbolMember
@@ -417,7 +506,7 @@ class _TypeView:
         where = f"{position}-{index}"
         symbol = node.fastcs_name
         with ui.row().classes("items-start gap-2"):
-            ui.label(member.name.replace("__", ".")).classes("w-48 font-mono")
+            ui.label(member.shown_name).classes("w-48 font-mono")
             if is_status(member):
                 derived = severity_of_name(member.name, node.direction)
                 options = {"default": f"default ({derived})"}
@@ -468,13 +557,15 @@ class _TypeView:
 
     def _coe(self, previews: list[PvPreview]) -> None:
         objects = self.terminal.coe_objects
-        ui.label(f"CoE objects ({len(objects)})").classes("text-lg mt-4")
+        shown = [obj for obj in objects if self.filter.shows_coe(obj)]
+        count = f"{len(shown)} of {len(objects)}" if len(shown) < len(objects) else ""
+        ui.label(f"CoE objects ({count or len(objects)})").classes("text-lg mt-4")
         by_object: dict[str, list[PvPreview]] = {}
         for preview in previews:
             if preview.node is None:
                 by_object.setdefault(preview.source[:10], []).append(preview)
         with _test(ui.column().classes("w-full gap-0"), "coe"):
-            for obj in objects:
+            for obj in shown:
                 self._coe_row(obj, by_object.get(f"CoE 0x{obj.index:04x}", []))
 
     def _coe_row(self, obj: CoeObject, previews: list[PvPreview]) -> None:
@@ -482,6 +573,7 @@ class _TypeView:
         with ui.row().classes("w-full items-start gap-3 border-b"):
             box = ui.checkbox(f"{address} {obj.name}", value=obj.selected)
             _test(box.classes("w-80"), f"coe-{address}")
+            box.props(f'data-row="{address} {obj.name}"')
             ui.label(f"{obj.type_name} | {obj.access or '-'}").classes(
                 "w-40 text-sm font-mono"
             )
@@ -496,9 +588,14 @@ class _TypeView:
                         f"{len(previews)} PVs, longest {longest} of {MAX_PV_LENGTH}"
                     ).classes("text-sm" if longest <= MAX_PV_LENGTH else ERROR)
                     ui.label(_pv_text(previews[0])).classes("text-xs font-mono")
-            if obj.sub_items:
-                with ui.expansion(f"{len(obj.sub_items)} sub-indices").classes("w-96"):
-                    for sub in obj.sub_items:
+            subs = self.filter.sub_items(obj)
+            if subs:
+                title = f"{len(obj.sub_items)} sub-indices" + (
+                    f", {len(subs)} match" if len(subs) < len(obj.sub_items) else ""
+                )
+                narrowed = self.filter.narrows and len(subs) < len(obj.sub_items)
+                with ui.expansion(title, value=narrowed).classes("w-96"):
+                    for sub in subs:
                         target = f"{address}:{sub.subindex:02x}"
                         sub_box = ui.checkbox(
                             f"{sub.subindex:02x} {sub.name} ({sub.type_name})",
@@ -547,6 +644,7 @@ class _TypeView:
             message.text = str(error)
             return
         dialog.close()
+        self.pending.clear()
         notes = "; ".join(str(d) for d in saved.dropped)
         ui.notify(
             f"saved {saved.path.name}"
@@ -557,6 +655,10 @@ class _TypeView:
 
     def _revert(self) -> None:
         self.session.revert(self.edited.name)
+        self.pending.clear()
+        if self.edited.new:  # discarded: the type is gone
+            ui.navigate.to("/")
+            return
         self.body.refresh()
 
 

@@ -17,7 +17,7 @@ from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.esi.catalog import EsiCatalog
 from fastcs_ethercat.esi.model import CatalogEntry
 from fastcs_ethercat.safe_names import file_in
-from fastcs_ethercat.terminals.esi_sources import open_catalog
+from fastcs_ethercat.terminals.esi_sources import checkout_default_esi, open_catalog
 from fastcs_ethercat.terminals.files import read_terminal_file, terminal_file_name
 from fastcs_ethercat.terminals.generate import terminal_from_esi
 from fastcs_ethercat.terminals.loader import terminal_paths
@@ -38,12 +38,18 @@ class EditedType:
 
     name: str
     path: Path
-    saved: TerminalType
+    saved: TerminalType | None
+    """None for a type added from the catalog and not saved yet."""
     current: TerminalType
 
     @property
     def changed(self) -> bool:
         return self.current != self.saved
+
+    @property
+    def new(self) -> bool:
+        """Added from the catalog; its file is written at the first save."""
+        return self.saved is None
 
     def counts(self) -> tuple[int, int, int, int]:
         """(selected symbols, symbols, selected CoE objects, CoE objects)."""
@@ -87,9 +93,10 @@ class EditorSession:
         return self.types[name]
 
     def catalog(self) -> EsiCatalog:
-        """The ESI catalog, read on first use (`--esi` or the cached zip)."""
+        """The ESI catalog, read on first use (`--esi`, else the cached zip,
+        else in a checkout the ESI subset it ships)."""
         if self._catalog is None:
-            self._catalog = open_catalog(self.esi)
+            self._catalog = open_catalog(self.esi or checkout_default_esi())
         return self._catalog
 
     def search(self, text: str) -> list[CatalogEntry]:
@@ -107,16 +114,16 @@ class EditorSession:
         return found
 
     def add_type(self, type_name: str) -> EditedType:
-        """Generate a type from the ESI into the directory (default choices)."""
+        """Generate a type from the ESI (default choices: its default PDO
+        group selected); its file is written only when it is saved."""
         entry = self.catalog().find(type_name)
         name = entry.type_name
         path = file_in(self.directory, terminal_file_name(name))
         if name in self.types or path.exists():
             raise UserError(f"{path.name} exists already", path=path)
         terminal = terminal_from_esi(self.catalog().load(name, entry.revision))
-        saved = save_terminals(path, {name: terminal})
-        self._files[saved.path] = [name]
-        self.types[name] = EditedType(name, path, terminal, terminal)
+        self._files[path] = [name]
+        self.types[name] = EditedType(name, path, None, terminal)
         return self.types[name]
 
     def apply(self, name: str, edit: Callable[[TerminalType], TerminalType]) -> None:
@@ -127,7 +134,12 @@ class EditorSession:
         edited.current = edit(edited.current)
 
     def revert(self, name: str) -> None:
+        """Forget the edits not saved (a type not saved yet: the type)."""
         edited = self.get(name)
+        if edited.saved is None:
+            del self.types[name]
+            del self._files[edited.path]
+            return
         edited.current = edited.saved
 
     def _file_types(self, edited: EditedType) -> dict[str, TerminalType]:

@@ -14,6 +14,7 @@ import urllib.request
 import zipfile
 from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import Final
 
 from fastcs_ethercat.cache_dir import cache_dir
 from fastcs_ethercat.errors import UserError
@@ -49,6 +50,29 @@ def esi_sources(given: Sequence[Path] | None) -> list[Path]:
         "no ESI source: pass --esi DIR (or a Beckhoff_EtherCAT_XML.zip), "
         "or run `fastcs-ethercat terminals update-cache` first"
     )
+
+
+CHECKOUT_ESI: Final = (
+    Path(__file__).resolve().parents[3] / "tests" / "data" / "esi" / "beckhoff",
+    Path(__file__).resolve().parents[3]
+    / "tests"
+    / "data"
+    / "esi"
+    / "EL3356-0010-fixture.xml",
+)
+"""The real Beckhoff ESI files a checkout ships for its tests (every shipped
+type's), and the EL3356-0010 description the shipped YAML comes from."""
+
+
+def checkout_default_esi() -> list[Path] | None:
+    """Without `--esi`: the cached vendor zip, else in a checkout the ESI
+    subset it ships (a plain clone can then add every shipped type), else
+    None (`esi_sources` then says how to get one)."""
+    if cached_zip().is_file():
+        return [cached_zip()]
+    if all(path.exists() for path in CHECKOUT_ESI):
+        return list(CHECKOUT_ESI)
+    return None
 
 
 def open_catalog(given: Sequence[Path] | None) -> EsiCatalog:

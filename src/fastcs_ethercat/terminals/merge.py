@@ -339,9 +339,11 @@ def _keep_oversampling_choice(
 
 
 def _coe_facts(obj: CoeObject) -> dict[str, Any]:
+    """What the ESI says of an object: not the choices (flags, names)."""
     data = obj.model_dump(mode="json", exclude={"selected", "fastcs_name"})
     for sub in data["sub_items"]:
         sub.pop("fastcs_name")
+        sub.pop("selected")
     return data
 
 

@@ -233,6 +233,10 @@ class PdoGroup(_Model):
     )
 
 
+MEMBER_GROUP_JOIN = "__"
+"""Joins an entry's group and name in a member's `name` (`Status__Error`)."""
+
+
 class SymbolMember(_Model):
     """One PDO entry inside a symbol (gaps are left out)."""
 
@@ -289,6 +293,12 @@ class SymbolMember(_Model):
     def address(self, position: int) -> tuple[int, int]:
         """(index, subindex) of this entry for the channel at `position`."""
         return parse_coe_address(self.coe[position])
+
+    @property
+    def shown_name(self) -> str:
+        """The name as people read and type it: `Status.Underrange` (the file
+        keeps the generator's `Status__Underrange`)."""
+        return self.name.replace(MEMBER_GROUP_JOIN, ".")
 
 
 class SymbolNode(_Model):

@@ -265,7 +265,8 @@ def find_member(node: SymbolNode, wanted: str | None, status: bool = False) -> i
         )
     folded = wanted.casefold()
     for position, member in enumerate(members):
-        if wanted == member.fastcs_name or folded == member.name.casefold():
+        spellings = (member.name.casefold(), member.shown_name.casefold())
+        if wanted == member.fastcs_name or folded in spellings:
             return position
     raise SelectionError(
         f"{node.name_template!r} has no member {wanted!r} "
@@ -274,7 +275,7 @@ def find_member(node: SymbolNode, wanted: str | None, status: bool = False) -> i
 
 
 def _member_names(members: Sequence[SymbolMember]) -> str:
-    return ", ".join(repr(m.name) for m in members) or "none"
+    return ", ".join(repr(m.shown_name) for m in members) or "none"
 
 
 def set_units(
