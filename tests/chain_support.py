@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from fastcs_ethercat.sim.chain import Chain
+from fastcs_ethercat.chain.file import Chain
 from fastcs_ethercat.sim.resolve import resolve_chain
 from fastcs_ethercat.terminals.registry import TerminalRegistry
 

@@ -16,6 +16,7 @@ from typing import Any
 
 import pytest
 
+from fastcs_ethercat.chain.file import Chain, load_chain, parse_chain
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.ioc.boot import boot_source, chain_plan, live_source
 from fastcs_ethercat.ioc.chains import (
@@ -29,7 +30,6 @@ from fastcs_ethercat.ioc.config import IocConfig
 from fastcs_ethercat.ioc.discovery import discover
 from fastcs_ethercat.ioc.plan import SystemPlan
 from fastcs_ethercat.ioc.target import TargetError
-from fastcs_ethercat.sim.chain import Chain, load_chain, parse_chain
 from fastcs_ethercat.sim.inprocess import sim_clients
 from fastcs_ethercat.sim.runner import SimulatorConfig, SimulatorThread
 from fastcs_ethercat.sim.target import SimTarget

@@ -10,7 +10,7 @@ import pytest
 
 from fastcs_ethercat.ads.constants import AdsReturnCode, IndexGroup
 from fastcs_ethercat.ads.symbols import AdsSymbolEntry
-from fastcs_ethercat.sim.chain import load_chain
+from fastcs_ethercat.chain.file import load_chain
 from fastcs_ethercat.sim.layout import INPUTS, OUTPUTS
 from fastcs_ethercat.sim.probe import SimProbe
 from fastcs_ethercat.sim.target import SimTarget

@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Final
 
 from fastcs_ethercat.ads.netid import AmsNetId
-from fastcs_ethercat.sim.chain import Chain, load_chain, parse_chain
+from fastcs_ethercat.chain.file import Chain, load_chain, parse_chain
 from fastcs_ethercat.sim.probe import SimProbe, device_probe
 from fastcs_ethercat.sim.resolve import registry_for
 from fastcs_ethercat.sim.target import SimTarget

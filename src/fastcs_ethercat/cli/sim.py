@@ -99,7 +99,7 @@ def sim_command(
     terminals_dir(terminals)
     apply_log_level(log_level)
 
-    from fastcs_ethercat.sim.chain import load_chain
+    from fastcs_ethercat.chain.file import load_chain
     from fastcs_ethercat.sim.resolve import load_revisions
     from fastcs_ethercat.sim.runner import SimulatorConfig, serve
     from fastcs_ethercat.sim.target import SimTarget

@@ -41,7 +41,7 @@ from fastcs_ethercat.ioc.target import TargetError, prepare_target
 from fastcs_ethercat.terminals.registry import TerminalRegistry
 
 if TYPE_CHECKING:  # chain files are read only without the PLC or with `chain:`
-    from fastcs_ethercat.sim.chain import Chain
+    from fastcs_ethercat.chain.file import Chain
 
 logger = logging.getLogger(__name__)
 
@@ -107,7 +107,7 @@ def chain_source(
     (the connection is made only when something asks for a client)."""
 
     async def from_file() -> tuple[SystemPlan, Connection]:
-        from fastcs_ethercat.sim.chain import load_chain
+        from fastcs_ethercat.chain.file import load_chain
 
         origin = f"the chain file {path}"
         plan = await chain_plan(load_chain(path), registry, config, origin)
@@ -155,7 +155,7 @@ def boot_source(config: IocConfig, registry: TerminalRegistry) -> PlanSource:
 def checked_chain(path: Path, registry: TerminalRegistry) -> Chain:
     """The chain file at `path`, its types known to `registry` (else a
     one-line `UserError` naming the file and line)."""
-    from fastcs_ethercat.sim.chain import load_chain
+    from fastcs_ethercat.chain.file import load_chain
     from fastcs_ethercat.sim.resolve import resolve_chain
 
     chain = load_chain(path)

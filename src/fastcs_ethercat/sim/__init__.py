@@ -4,7 +4,7 @@ that answers real ADS, and the asyncio I/O around it.
 Model (this package, sans-I/O) and I/O (`server`, `udp`, `control`,
 `notifications`, `runner`) meet at one interface:
 
-- `sim.chain`: `load_chain(path) -> Chain` reads a chain file (see its
+- `chain.file`: `load_chain(path) -> Chain` reads a chain file (see its
   docstring for the format; examples in `ioc/*-chain.yaml`); problems are
   one-line `UserError`s naming file and line.
 - `sim.target.SimTarget`, built by

@@ -11,7 +11,7 @@ from typing import Any, Final
 
 from fastcs_ethercat.ads.constants import AdsReturnCode
 from fastcs_ethercat.ads.errors import AdsCodecError
-from fastcs_ethercat.sim.chain import SignalSpec, SystemSpec
+from fastcs_ethercat.chain.file import SignalSpec, SystemSpec
 from fastcs_ethercat.sim.generators import (
     Leaf,
     SignalBank,

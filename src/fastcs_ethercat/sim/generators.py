@@ -21,7 +21,7 @@ from typing import Final
 import numpy as np
 import numpy.typing as npt
 
-from fastcs_ethercat.sim.chain import SignalSpec
+from fastcs_ethercat.chain.file import SignalSpec
 from fastcs_ethercat.sim.layout import SymbolDef
 from fastcs_ethercat.sim.tctypes import TcType
 

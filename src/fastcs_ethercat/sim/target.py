@@ -24,7 +24,7 @@ from fastcs_ethercat.ads.errors import AdsCodecError
 from fastcs_ethercat.ads.ethercat import AlState
 from fastcs_ethercat.ads.frames import AmsPacket
 from fastcs_ethercat.ads.netid import AmsAddress, AmsNetId
-from fastcs_ethercat.sim.chain import Chain, SystemSpec, load_chain
+from fastcs_ethercat.chain.file import Chain, SystemSpec, load_chain
 from fastcs_ethercat.sim.device import SimDevice
 from fastcs_ethercat.sim.resolve import (
     ResolvedSlave,
