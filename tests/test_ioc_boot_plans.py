@@ -3,7 +3,7 @@ writes, the per-target cache, and the boot source's order (the PLC, the
 configured chain, the cached chain, else wait).
 
 The simulator runs in this process (`SimulatorThread`, loopback sockets) or
-is reached without a socket (`sim.inprocess`); no process is started.
+is reached without a socket (`twincat.inprocess`); no process is started.
 """
 
 from __future__ import annotations
@@ -30,11 +30,11 @@ from fastcs_ethercat.ioc.config import IocConfig
 from fastcs_ethercat.ioc.discovery import discover
 from fastcs_ethercat.ioc.plan import SystemPlan
 from fastcs_ethercat.ioc.target import TargetError
-from fastcs_ethercat.sim.inprocess import sim_clients
 from fastcs_ethercat.sim.runner import SimulatorConfig, SimulatorThread
-from fastcs_ethercat.sim.target import SimTarget
 from fastcs_ethercat.terminals.loader import load_terminals
 from fastcs_ethercat.terminals.registry import TerminalRegistry
+from fastcs_ethercat.twincat.inprocess import sim_clients
+from fastcs_ethercat.twincat.target import SimTarget
 from tests.chain_support import played
 from tests.conftest import REPO_ROOT, TERMINALS_DIR
 from tests.ioc_support import free_port

@@ -36,8 +36,8 @@ from fastcs_ethercat.sim.control import ControlError, ControlRoutes, SimControl
 from fastcs_ethercat.sim.faults import FaultError, parse_fault
 from fastcs_ethercat.sim.notifications import HandleAllocator, NotificationRegistry
 from fastcs_ethercat.sim.server import AmsConnection, AmsServer
-from fastcs_ethercat.sim.target import SimTarget
 from fastcs_ethercat.sim.udp import UdpResponder
+from fastcs_ethercat.twincat.target import SimTarget
 from tests.conftest import REPO_ROOT
 from tests.sim_support import DEVICE_PORT, IO_SERVER_PORT, StandInTarget
 

@@ -10,7 +10,7 @@ import pytest
 
 from fastcs_ethercat.chain.file import load_chain, parse_chain
 from fastcs_ethercat.errors import UserError
-from fastcs_ethercat.sim.target import SimTarget
+from fastcs_ethercat.twincat.target import SimTarget
 from tests.test_sim_model_support import (
     DEMO_CHAIN,
     REPO_ROOT,

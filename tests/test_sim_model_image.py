@@ -11,9 +11,9 @@ import pytest
 from fastcs_ethercat.ads.constants import AdsReturnCode, IndexGroup
 from fastcs_ethercat.ads.symbols import AdsSymbolEntry
 from fastcs_ethercat.chain.file import load_chain
-from fastcs_ethercat.sim.layout import INPUTS, OUTPUTS
 from fastcs_ethercat.sim.probe import SimProbe
-from fastcs_ethercat.sim.target import SimTarget
+from fastcs_ethercat.twincat.layout import INPUTS, OUTPUTS
+from fastcs_ethercat.twincat.target import SimTarget
 from tests.test_sim_model_support import (
     EL1014,
     EL1502_TWO_COUNTERS,

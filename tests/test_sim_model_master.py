@@ -31,7 +31,7 @@ from fastcs_ethercat.ads.ethercat import (
 )
 from fastcs_ethercat.ads.netid import AmsNetId
 from fastcs_ethercat.sim.probe import ProbeError
-from fastcs_ethercat.sim.target import SimTarget
+from fastcs_ethercat.twincat.target import SimTarget
 from tests.test_sim_model_support import (
     DEVICE_NET_ID,
     EL1014,

@@ -28,7 +28,7 @@ from fastcs_ethercat.ads.sums import (
 )
 from fastcs_ethercat.ads.symbols import AdsSymbolEntry
 from fastcs_ethercat.sim.probe import SimProbe
-from fastcs_ethercat.sim.target import SimTarget
+from fastcs_ethercat.twincat.target import SimTarget
 from tests.test_sim_model_support import (
     EL1014,
     EL2024,

@@ -14,9 +14,9 @@ from typing import Final
 from fastcs_ethercat.ads.netid import AmsNetId
 from fastcs_ethercat.chain.file import Chain, load_chain, parse_chain
 from fastcs_ethercat.sim.probe import SimProbe, device_probe
-from fastcs_ethercat.sim.resolve import registry_for
-from fastcs_ethercat.sim.target import SimTarget
 from fastcs_ethercat.terminals.registry import TerminalRegistry
+from fastcs_ethercat.twincat.resolve import registry_for
+from fastcs_ethercat.twincat.target import SimTarget
 
 REPO_ROOT: Final = Path(__file__).resolve().parents[1]
 TERMINALS_DIR: Final = REPO_ROOT / "terminals"

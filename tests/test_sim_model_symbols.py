@@ -36,7 +36,7 @@ from fastcs_ethercat.ads.symbols import (
     decode_symbol_table,
 )
 from fastcs_ethercat.sim.probe import SimProbe
-from fastcs_ethercat.sim.target import SimTarget
+from fastcs_ethercat.twincat.target import SimTarget
 from tests.test_sim_model_support import (
     EL1014,
     EL1502_TWO_COUNTERS,

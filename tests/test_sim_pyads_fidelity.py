@@ -28,8 +28,8 @@ from fastcs_ethercat.ioc.config import IocConfig
 from fastcs_ethercat.ioc.discovery import discover
 from fastcs_ethercat.ioc.plan import SystemPlan
 from fastcs_ethercat.sim.runner import SimulatorThread
-from fastcs_ethercat.sim.target import SimTarget
 from fastcs_ethercat.terminals.loader import load_terminals
+from fastcs_ethercat.twincat.target import SimTarget
 from tests.conftest import REPO_ROOT, TERMINALS_DIR
 
 NET_ID: Final = "192.0.2.63.1.1"

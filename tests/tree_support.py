@@ -15,7 +15,7 @@ from fastcs_ethercat.ioc.app import root_controller
 from fastcs_ethercat.ioc.config import IocConfig
 from fastcs_ethercat.ioc.controllers.root import RootController
 from fastcs_ethercat.sim.runner import SimulatorThread
-from fastcs_ethercat.sim.target import SimTarget
+from fastcs_ethercat.twincat.target import SimTarget
 from tests.conftest import TERMINALS_DIR
 
 BEAMLINE_PREFIX = "BL21I-EA-ECAT-01"

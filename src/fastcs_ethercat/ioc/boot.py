@@ -88,8 +88,8 @@ async def chain_plan(
     chain: Chain, registry: TerminalRegistry, config: IocConfig, origin: str
 ) -> SystemPlan:
     """What discovery would find on a PLC that runs `chain` (no network)."""
-    from fastcs_ethercat.sim.inprocess import sim_clients
-    from fastcs_ethercat.sim.target import SimTarget
+    from fastcs_ethercat.twincat.inprocess import sim_clients
+    from fastcs_ethercat.twincat.target import SimTarget
 
     target = SimTarget(chain, registry)
     async with sim_clients(target) as clients:
@@ -156,7 +156,7 @@ def checked_chain(path: Path, registry: TerminalRegistry) -> Chain:
     """The chain file at `path`, its types known to `registry` (else a
     one-line `UserError` naming the file and line)."""
     from fastcs_ethercat.chain.file import load_chain
-    from fastcs_ethercat.sim.resolve import resolve_chain
+    from fastcs_ethercat.twincat.resolve import resolve_chain
 
     chain = load_chain(path)
     resolve_chain(chain, registry)
@@ -170,7 +170,7 @@ async def _offline_plan(
     why: str,
 ) -> tuple[SystemPlan, Connection] | None:
     """The configured chain, else the cached one, as a plan to serve now."""
-    from fastcs_ethercat.sim.resolve import resolve_chain
+    from fastcs_ethercat.twincat.resolve import resolve_chain
 
     if configured is not None:
         chain, origin = configured, f"the chain file {config.chain}"

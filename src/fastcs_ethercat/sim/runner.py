@@ -43,7 +43,7 @@ THREAD_START_TIMEOUT_SECONDS: Final = 30.0
 
 
 class RunnableTarget(SimTargetLike, ControllableTarget, Protocol):
-    """Everything the simulator asks of the model (`sim.target.SimTarget`)."""
+    """Everything the simulator asks of the model (`twincat.target.SimTarget`)."""
 
     @property
     def system_net_id(self) -> AmsNetId: ...
