@@ -15,7 +15,6 @@ from __future__ import annotations
 import contextlib
 import queue
 import re
-import socket
 import subprocess
 import sys
 import threading
@@ -28,35 +27,13 @@ from typing import Any
 import yaml
 from p4p.client.thread import Context
 
+from fastcs_ethercat.process import free_port
 from fastcs_ethercat.sim.process import SimProcess
 from tests.conftest import TERMINALS_DIR, loopback_env
 from tests.processes import TOKEN_VARIABLE, new_token, processes_with_token, stop_pid
 
 BIN = Path(sys.executable).parent
 START_TIMEOUT = 90.0
-
-
-def free_port(tcp: bool, udp: bool) -> int:
-    """A loopback port free for TCP and/or UDP right now."""
-    for _ in range(200):
-        with socket.socket() as probe:
-            probe.bind(("127.0.0.1", 0))
-            port = probe.getsockname()[1]
-        sockets = []
-        try:
-            if tcp:
-                sockets.append(socket.socket(socket.AF_INET, socket.SOCK_STREAM))
-                sockets[-1].bind(("127.0.0.1", port))
-            if udp:
-                sockets.append(socket.socket(socket.AF_INET, socket.SOCK_DGRAM))
-                sockets[-1].bind(("127.0.0.1", port))
-            return port
-        except OSError:
-            continue
-        finally:
-            for sock in sockets:
-                sock.close()
-    raise RuntimeError("no free port")
 
 
 def ioc_env(token: str) -> dict[str, str]:

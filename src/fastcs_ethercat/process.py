@@ -9,19 +9,24 @@ The simulator and the IOC each print one ready line once they serve:
 starts a command, keeps reading its output (so it never blocks on a full
 pipe), waits for its ready line and stops it (SIGTERM, then SIGKILL) by PID.
 The simulator (`sim.process`), the benchmarks, the demo and the tests all use
-these, so there is one protocol and one way to launch.
+these, so there is one protocol and one way to launch; `free_port` gives
+them the loopback ports they serve on.
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
+import socket
 import subprocess
 import tempfile
 import threading
 import time
 from collections.abc import Mapping, Sequence
 from typing import IO, Final, Self
+
+from fastcs_ethercat.loopback import LOOPBACK
 
 READY_FORMAT: Final = "fastcs-ethercat {kind} ready:"
 STOP_TIMEOUT_S: Final = 10.0
@@ -175,3 +180,21 @@ class ChildProcess:
 
     def __exit__(self, *exc_info: object) -> None:
         self.close()
+
+
+def free_port(*, tcp: bool, udp: bool) -> int:
+    """A loopback port free right now for TCP and/or UDP (for a child to serve on)."""
+    for _ in range(100):
+        with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
+            probe.bind((LOOPBACK, 0))
+            port = int(probe.getsockname()[1])
+        kinds = [socket.SOCK_STREAM] * tcp + [socket.SOCK_DGRAM] * udp
+        with contextlib.ExitStack() as held:
+            try:
+                for kind in kinds:
+                    sock = held.enter_context(socket.socket(socket.AF_INET, kind))
+                    sock.bind((LOOPBACK, port))
+            except OSError:
+                continue
+        return port
+    raise OSError("no free loopback port")

@@ -21,8 +21,8 @@ from fastcs_ethercat.bench.context import BenchContext
 from fastcs_ethercat.bench.machine import describe_machine
 from fastcs_ethercat.bench.repeater import stop_own_repeaters
 from fastcs_ethercat.bench.report import SCAN_KEYS
-from fastcs_ethercat.cli.ports import free_port
 from fastcs_ethercat.loopback import EPICS_LOOPBACK_ENV
+from fastcs_ethercat.process import free_port
 
 SECTIONS: Final = ("esi", "start", "scan", "latency")
 SKIPPED: Final = {"skipped": "section not selected"}
