@@ -22,6 +22,7 @@ from fastcs.datatypes import Int
 
 from fastcs_ethercat.ads.ethercat import SlaveIdentity
 from fastcs_ethercat.ioc.alarms import Status
+from fastcs_ethercat.ioc.encode import check_write
 from fastcs_ethercat.ioc.health import COMM, Health
 from fastcs_ethercat.ioc.plan import (
     MasterPlan,
@@ -31,7 +32,6 @@ from fastcs_ethercat.ioc.plan import (
     SystemPlan,
     TerminalPlan,
 )
-from fastcs_ethercat.ioc.poller import check_write
 from fastcs_ethercat.ioc.reconnect import chain_changes
 from fastcs_ethercat.sim.process import SimProcess
 from tests.conftest import REPO_ROOT, TERMINALS_DIR
