@@ -1,4 +1,6 @@
-"""One open `AdsClient` per (NetId, port), all on one connection to the PLC.
+"""The client pool: one open `AdsClient` per (NetId, port), all on one TCP
+connection to the PLC's router (whether a request may go out is
+`ioc.connection`'s).
 
 TwinCAT routes by the AMS header, so the pool keeps one TCP connection to the
 target's router and hands out clients for every AMS address behind it (I/O
