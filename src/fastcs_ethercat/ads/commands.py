@@ -76,11 +76,6 @@ def notification_time_from_ms(milliseconds: float) -> int:
     return round(milliseconds * NOTIFICATION_TIME_UNITS_PER_MS)
 
 
-def notification_time_to_ms(units: int) -> float:
-    """Milliseconds for a max delay / cycle time field value."""
-    return units / NOTIFICATION_TIME_UNITS_PER_MS
-
-
 # -- shared pieces ----------------------------------------------------------
 
 

@@ -135,13 +135,6 @@ class AdsSymbolEntry(TableEntry):
         return entry, entry_length
 
 
-def decode_symbol_entry(
-    raw: bytes | bytearray | memoryview, offset: int = 0
-) -> tuple[AdsSymbolEntry, int]:
-    """Decode the entry starting at `offset`; return it and its entry length."""
-    return AdsSymbolEntry.decode_at(raw, offset)
-
-
 decode_symbol_table = AdsSymbolEntry.decode_table
 """Every entry of a 0xF00B table (`count` of them, from 0xF00F)."""
 encode_symbol_table = AdsSymbolEntry.encode_table
