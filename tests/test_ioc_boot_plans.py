@@ -30,7 +30,7 @@ from fastcs_ethercat.ioc.config import IocConfig
 from fastcs_ethercat.ioc.discovery import discover
 from fastcs_ethercat.ioc.plan import SystemPlan
 from fastcs_ethercat.ioc.target import TargetError
-from fastcs_ethercat.sim.runner import SimulatorConfig, SimulatorThread
+from fastcs_ethercat.sim.runner import SimulatorConfig
 from fastcs_ethercat.terminals.loader import load_terminals
 from fastcs_ethercat.terminals.registry import TerminalRegistry
 from fastcs_ethercat.twincat.inprocess import sim_clients
@@ -38,6 +38,7 @@ from fastcs_ethercat.twincat.target import SimTarget
 from tests.chain_support import played
 from tests.conftest import REPO_ROOT, TERMINALS_DIR
 from tests.ioc_support import free_port
+from tests.sim_thread import SimulatorThread
 
 DEMO_CHAIN = REPO_ROOT / "ioc" / "demo-chain.yaml"
 

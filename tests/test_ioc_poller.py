@@ -58,7 +58,7 @@ def sim() -> Iterator[SimProcess]:
 def plan(sim: SimProcess) -> SystemPlan:
     async def run() -> SystemPlan:
         config = IocConfig(prefix="TEST", target=sim.pyads_ip, ams_net_id=sim.net_id)
-        async with ClientPool.for_target(config.target) as pool:
+        async with ClientPool(config.target_host, config.target_port) as pool:
             return await discover(pool, load_terminals([TERMINALS_DIR]), config)
 
     return asyncio.run(run())
