@@ -53,8 +53,7 @@ def write_config(folder: Path, prefix: str, port: int, **settings: object) -> Pa
 
 def everything_said(ioc: IocProcess) -> str:
     """The IOC's whole output, including what no `wait_for_line` read."""
-    while not ioc.lines.empty():
-        ioc.output.append(ioc.lines.get_nowait())
+    ioc.unread()
     return "".join(ioc.output)
 
 

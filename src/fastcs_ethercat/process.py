@@ -67,12 +67,16 @@ class ChildProcess:
         *,
         env: Mapping[str, str] | None = None,
         stdin_pipe: bool = False,
+        merge_stderr: bool = False,
     ) -> None:
         self.args = list(args)
         self.kind = kind
         self.env = dict(env) if env is not None else None
         self.stdin_pipe = stdin_pipe
         """Hold the child's stdin: a child that exits at EOF follows us."""
+        self.merge_stderr = merge_stderr
+        """stderr into `lines` with stdout, in order (tests that read the
+        log), not into a temporary file."""
         self.lines: list[str] = []
         self.fields: dict[str, str] = {}
         self.started_at = 0.0
@@ -81,22 +85,28 @@ class ChildProcess:
         self._log: IO[str] | None = None
         self._reader: threading.Thread | None = None
 
-    def start(self, timeout: float) -> dict[str, str]:
-        """Start and wait for the ready line; its fields (raise with the log)."""
-        self._log = tempfile.TemporaryFile(  # noqa: SIM115 - lives with the process
-            "w+", prefix=f"{self.kind}-", suffix=".log"
-        )
+    def launch(self) -> None:
+        """Start, reading its output from now on; `start` also waits."""
+        if not self.merge_stderr:
+            self._log = tempfile.TemporaryFile(  # noqa: SIM115 - lives with it
+                "w+", prefix=f"{self.kind}-", suffix=".log"
+            )
         self.started_at = time.monotonic()
         self._process = subprocess.Popen(
             self.args,
             stdin=subprocess.PIPE if self.stdin_pipe else subprocess.DEVNULL,
             stdout=subprocess.PIPE,
-            stderr=self._log,
+            stderr=subprocess.STDOUT if self.merge_stderr else self._log,
             text=True,
             env=self.env,
         )
         self._reader = threading.Thread(target=self._read_stdout, daemon=True)
         self._reader.start()
+
+    def start(self, timeout: float) -> dict[str, str]:
+        """Start and wait for the ready line; its fields (raise with the log)."""
+        self.launch()
+        assert self._process is not None and self._reader is not None
         deadline = self.started_at + timeout
         while time.monotonic() < deadline:
             if self.ready_at is not None:
@@ -125,6 +135,12 @@ class ChildProcess:
             self.lines.append(line)
 
     @property
+    def popen(self) -> subprocess.Popen[str]:
+        """The running child (its stdin, when held)."""
+        assert self._process is not None, "not started"
+        return self._process
+
+    @property
     def pid(self) -> int:
         assert self._process is not None, "not started"
         return self._process.pid
@@ -134,9 +150,13 @@ class ChildProcess:
         return None if self._process is None else self._process.poll()
 
     def wait(self, timeout: float) -> int:
-        """The exit code, once the process has exited (TimeoutExpired if not)."""
+        """The exit code, once the process has exited (TimeoutExpired if not)
+        and its output is all in `lines`."""
         assert self._process is not None, "not started"
-        return self._process.wait(timeout)
+        code = self._process.wait(timeout)
+        if self._reader is not None:
+            self._reader.join(timeout)
+        return code
 
     def stderr_text(self) -> str:
         """What the process wrote to stderr so far."""
