@@ -10,6 +10,7 @@ circle.
 from __future__ import annotations
 
 import ast
+import functools
 import re
 from collections.abc import Iterator
 from itertools import pairwise
@@ -30,6 +31,7 @@ def module_name(path: Path) -> str:
     return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
 
 
+@functools.cache
 def all_modules() -> dict[str, Path]:
     return {module_name(path): path for path in sorted(SOURCE.rglob("*.py"))}
 
@@ -74,6 +76,7 @@ def _after_dash_m(node: ast.AST) -> list[ast.AST]:
     ]
 
 
+@functools.cache
 def import_graph() -> dict[str, set[str]]:
     modules = all_modules()
     return {
