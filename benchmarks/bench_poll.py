@@ -176,7 +176,7 @@ def bench_live(runs: int) -> None:
 
     async def run(sim: SimProcess) -> None:
         config = IocConfig(prefix="BENCH", target=sim.pyads_ip, ams_net_id=sim.net_id)
-        async with ClientPool.for_target(config.target) as pool:
+        async with ClientPool(config.target_host, config.target_port) as pool:
             plan = await discover(pool, load_terminals([REPO / "terminals"]), config)
             master = plan.masters[0]
             points = [p for t in master.terminals for p in t.points]

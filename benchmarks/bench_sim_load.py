@@ -21,10 +21,10 @@ from pathlib import Path
 
 from fastcs_ethercat.ads.constants import IndexGroup
 from fastcs_ethercat.ads.sums import SumReadItem, SumReadRequest
-from fastcs_ethercat.sim.chain import load_chain
+from fastcs_ethercat.chain.file import load_chain
 from fastcs_ethercat.sim.probe import device_probe
-from fastcs_ethercat.sim.resolve import registry_for
-from fastcs_ethercat.sim.target import SimTarget
+from fastcs_ethercat.twincat.resolve import registry_for
+from fastcs_ethercat.twincat.target import SimTarget
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_CHAIN = REPO / "ioc" / "rack-chain.yaml"

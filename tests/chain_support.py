@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from fastcs_ethercat.sim.chain import Chain
-from fastcs_ethercat.sim.resolve import resolve_chain
+from fastcs_ethercat.chain.file import Chain
 from fastcs_ethercat.terminals.registry import TerminalRegistry
+from fastcs_ethercat.twincat.resolve import resolve_chain
 
 
 def played(chain: Chain, registry: TerminalRegistry) -> list[tuple[object, ...]]:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Final
 
 import pytest
 
@@ -18,6 +19,14 @@ from tests.session_guards import pytest_terminal_summary as pytest_terminal_summ
 from tests.session_guards import pytest_unconfigure as pytest_unconfigure
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
+
+DLS_TYPES: Final = (
+    "EK1100", "EK1122", "EL1014", "EL1084", "EL1124", "EL1502", "EL2024",
+    "EL2124", "EL3104", "EL3124", "EL3202", "EL3314", "EL3356-0010", "EL3602",
+    "EL3702", "EL4134", "EL4732", "ELM3704-0000", "EP3174-0002", "EP4374-0002",
+)  # fmt: skip
+"""The terminal types in use at Diamond (the design's table): one YAML file
+each in `terminals/`, every one in the demo chain."""
 TERMINALS_DIR = REPO_ROOT / "terminals"
 TEST_DATA = Path(__file__).resolve().parent / "data"
 

@@ -24,15 +24,10 @@ from pathlib import Path
 from lxml import etree
 
 from fastcs_ethercat.esi import parse_esi_int
+from tests.conftest import DLS_TYPES as SHIPPED_TYPES
 from tests.conftest import ESI_SUBSET
 
-DLS_TYPES: frozenset[str] = frozenset(
-    {
-        "EK1100", "EK1122", "EL1014", "EL1084", "EL1124", "EL1502", "EL2024",
-        "EL2124", "EL3104", "EL3124", "EL3202", "EL3314", "EL3602", "EL3702",
-        "EL4134", "EL4732", "ELM3704-0000", "EP3174-0002", "EP4374-0002",
-    }
-)  # fmt: skip
+DLS_TYPES: frozenset[str] = frozenset(SHIPPED_TYPES) - {"EL3356-0010"}
 """Kept in every revision (EL3356-0010 is not in the shared files)."""
 
 QUIRKS: frozenset[tuple[str, int]] = frozenset(

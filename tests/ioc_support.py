@@ -13,12 +13,9 @@ including whatever the IOC spawned (found by a token in its environment).
 from __future__ import annotations
 
 import contextlib
-import queue
 import re
-import socket
 import subprocess
 import sys
-import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
@@ -28,35 +25,13 @@ from typing import Any
 import yaml
 from p4p.client.thread import Context
 
+from fastcs_ethercat.process import ChildProcess, free_port
 from fastcs_ethercat.sim.process import SimProcess
 from tests.conftest import TERMINALS_DIR, loopback_env
 from tests.processes import TOKEN_VARIABLE, new_token, processes_with_token, stop_pid
 
 BIN = Path(sys.executable).parent
 START_TIMEOUT = 90.0
-
-
-def free_port(tcp: bool, udp: bool) -> int:
-    """A loopback port free for TCP and/or UDP right now."""
-    for _ in range(200):
-        with socket.socket() as probe:
-            probe.bind(("127.0.0.1", 0))
-            port = probe.getsockname()[1]
-        sockets = []
-        try:
-            if tcp:
-                sockets.append(socket.socket(socket.AF_INET, socket.SOCK_STREAM))
-                sockets[-1].bind(("127.0.0.1", port))
-            if udp:
-                sockets.append(socket.socket(socket.AF_INET, socket.SOCK_DGRAM))
-                sockets[-1].bind(("127.0.0.1", port))
-            return port
-        except OSError:
-            continue
-        finally:
-            for sock in sockets:
-                sock.close()
-    raise RuntimeError("no free port")
 
 
 def ioc_env(token: str) -> dict[str, str]:
@@ -73,32 +48,41 @@ def ioc_env(token: str) -> dict[str, str]:
 
 @dataclass
 class IocProcess:
-    """An IOC subprocess, its environment and its output so far."""
+    """An IOC child process (`process.ChildProcess`, stdout and stderr in
+    one stream), its environment and the output read so far."""
 
-    process: subprocess.Popen[str]
+    child: ChildProcess
     prefix: str
     env: dict[str, str]
     token: str
-    lines: queue.Queue[str]
     output: list[str] = field(default_factory=list)
+    """Lines read by `wait_for_line` and `unread`, each with its newline."""
     figures: dict[str, float] = field(default_factory=dict)
-    reader: threading.Thread | None = None
+
+    @property
+    def process(self) -> subprocess.Popen[str]:
+        return self.child.popen
 
     def pv(self, name: str) -> str:
         return f"{self.prefix}:{name}"
 
+    def unread(self) -> list[str]:
+        """The lines that came since the last read, now read."""
+        lines = [f"{line}\n" for line in self.child.lines[len(self.output) :]]
+        self.output.extend(lines)
+        return lines
+
     def wait_for_line(self, pattern: str, timeout: float) -> str:
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
-            try:
-                line = self.lines.get(timeout=0.1)
-            except queue.Empty:
-                if self.process.poll() is not None:
-                    break
-                continue
-            self.output.append(line)
-            if re.search(pattern, line):
-                return line
+            exited = self.process.poll() is not None
+            for line in self.child.lines[len(self.output) :]:
+                self.output.append(f"{line}\n")
+                if re.search(pattern, line):
+                    return f"{line}\n"
+            if exited:
+                break
+            time.sleep(0.05)
         tail = "".join(self.output[-40:])
         raise AssertionError(f"no line matching {pattern!r}; output:\n{tail}")
 
@@ -127,13 +111,9 @@ class IocProcess:
 
     def stop(self) -> None:
         """Stop the IOC and everything carrying its token, by PID."""
-        stop_pid(self.process.pid)
-        with contextlib.suppress(subprocess.TimeoutExpired):
-            self.process.wait(10)
+        self.child.stop()
         for pid in processes_with_token(self.token):
             stop_pid(pid)
-        if self.reader is not None:
-            self.reader.join(5)
 
 
 def start_ioc(
@@ -144,24 +124,13 @@ def start_ioc(
     *,
     commands: bool = False,
 ) -> IocProcess:
-    """Start `command` with stdout+stderr read into a queue by a thread;
+    """Start `command`, its stdout and stderr read as one stream from now on;
     `commands`: with a pipe to its stdin (test IOCs that take commands)."""
-    process = subprocess.Popen(
-        list(command),
-        env=env,
-        stdin=subprocess.PIPE if commands else None,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
+    child = ChildProcess(
+        command, "ioc", env=env, stdin_pipe=commands, merge_stderr=True
     )
-    lines: queue.Queue[str] = queue.Queue()
-    assert process.stdout is not None
-    stdout = process.stdout
-    reader = threading.Thread(
-        target=lambda: [lines.put(x) for x in stdout], daemon=True
-    )
-    reader.start()
-    return IocProcess(process, prefix, env, token, lines, reader=reader)
+    child.launch()
+    return IocProcess(child, prefix, env, token)
 
 
 def caget(ioc: IocProcess, *flags_and_names: str) -> dict[str, str]:

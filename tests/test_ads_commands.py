@@ -38,10 +38,8 @@ from fastcs_ethercat.ads.commands import (
     decode_request,
     decode_response,
     error_response,
-    filetime_from_datetime,
     filetime_from_unix_ns,
     filetime_to_datetime,
-    filetime_to_unix_ns,
     notification_time_from_ms,
 )
 from fastcs_ethercat.ads.constants import (
@@ -51,6 +49,7 @@ from fastcs_ethercat.ads.constants import (
     TransmissionMode,
 )
 from fastcs_ethercat.ads.errors import AdsCodecError
+from tests.ads_codec import filetime_from_datetime, filetime_to_unix_ns
 
 u32 = st.integers(0, 0xFFFF_FFFF)
 u16 = st.integers(0, 0xFFFF)

@@ -21,10 +21,10 @@ from fastcs_ethercat.ads.constants import (
     StateFlag,
     SymbolFlag,
     TransmissionMode,
-    coe_index_offset,
     describe_return_code,
     device_port,
 )
+from tests.ads_codec import coe_index_offset
 
 
 def test_command_ids_match_pyads() -> None:

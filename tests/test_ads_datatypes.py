@@ -14,13 +14,12 @@ from fastcs_ethercat.ads.datatypes import (
     AdsDataTypeEntry,
     ArrayDimension,
     MemberLayout,
-    MemberSpec,
     decode_data_type_table,
     encode_data_type_table,
-    layout_structure,
     walk_members,
 )
 from fastcs_ethercat.ads.errors import AdsCodecError
+from tests.ads_codec import MemberSpec, layout_structure
 
 AI_TYPE = layout_structure(
     "AI Standard Channel 1_TYPE",

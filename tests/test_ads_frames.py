@@ -22,10 +22,10 @@ from fastcs_ethercat.ads.errors import AdsCodecError
 from fastcs_ethercat.ads.frames import (
     AmsPacket,
     FrameReassembler,
-    decode_packet,
     encode_packet,
 )
 from fastcs_ethercat.ads.netid import AmsAddress, AmsNetId
+from tests.ads_codec import decode_packet
 
 TARGET = AmsAddress(AmsNetId.parse("5.12.34.56.1.1"), 27905)
 SOURCE = AmsAddress(AmsNetId.parse("192.168.0.10.1.1"), 32905)

@@ -4,6 +4,7 @@ bad frame becomes an event, never an exception."""
 from __future__ import annotations
 
 import struct
+from dataclasses import replace
 from typing import Final
 
 from hypothesis import given, settings
@@ -51,7 +52,7 @@ def sent(session: ClientSession, request: AdsRequest | None = None) -> AmsPacket
 
 
 def read_answer(session: ClientSession, data: bytes = b"\x01\x02\x03\x04") -> bytes:
-    return encode_packet(sent(session).with_payload(ReadResponse(0, data).encode()))
+    return encode_packet(replace(sent(session), payload=ReadResponse(0, data).encode()))
 
 
 def test_an_answer_is_matched_by_invoke_id_even_split_into_single_bytes() -> None:
@@ -117,7 +118,7 @@ def test_unknown_and_late_invoke_ids() -> None:
     session = ClientSession()
     packet = sent(session)
     session.forget(packet.invoke_id)
-    late = encode_packet(packet.with_payload(ReadResponse(0, bytes(4)).encode()))
+    late = encode_packet(replace(packet, payload=ReadResponse(0, bytes(4)).encode()))
     bogus = encode_packet(
         AmsPacket(US, PLC, AmsCommand.READ, 0x0005, 0, 99999, ReadResponse().encode())
     )
@@ -162,10 +163,12 @@ def test_answers_that_do_not_fit_their_request_fail_it() -> None:
             )
         ),
         encode_packet(
-            cases["payload lies"].with_payload(struct.pack("<II", 0, 100) + b"abc")
+            replace(cases["payload lies"], payload=struct.pack("<II", 0, 100) + b"abc")
         ),
         encode_packet(
-            cases["more than asked"].with_payload(ReadResponse(0, bytes(5)).encode())
+            replace(
+                cases["more than asked"], payload=ReadResponse(0, bytes(5)).encode()
+            )
         ),
     ]
 
@@ -215,7 +218,7 @@ def test_notifications_and_requests_from_the_peer() -> None:
         0,
         DeviceNotification(stamps).encode(),
     )
-    garbage = good.with_payload(b"\xff" * 13)
+    garbage = replace(good, payload=b"\xff" * 13)
     request = AmsPacket(US, PLC, AmsCommand.READ, 0x0004, 0, 5, bytes(12))
 
     events = session.receive(
@@ -232,7 +235,7 @@ def test_notifications_and_requests_from_the_peer() -> None:
 def test_answers_still_match_after_a_read_state() -> None:
     session = ClientSession()
     packet = sent(session, ReadStateRequest())
-    answer = packet.with_payload(ReadStateResponse(0, 5, 0).encode())
+    answer = replace(packet, payload=ReadStateResponse(0, 5, 0).encode())
 
     (event,) = session.receive(encode_packet(answer))
 

@@ -19,11 +19,11 @@ from fastcs_ethercat.ads.symbols import (
     AdsSymbolEntry,
     SymbolUploadInfo,
     SymbolUploadInfo2,
-    decode_symbol_name,
     decode_symbol_table,
     encode_symbol_name,
     encode_symbol_table,
 )
+from tests.ads_codec import decode_symbol_name
 
 ANALOG = AdsSymbolEntry(
     name="Term 2 (EL3104).AI Standard Channel 1",

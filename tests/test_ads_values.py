@@ -17,11 +17,9 @@ from fastcs_ethercat.ads.constants import AdsDataType
 from fastcs_ethercat.ads.errors import AdsCodecError
 from fastcs_ethercat.ads.values import (
     array_type_name,
-    numpy_dtype,
     pack_value,
     parse_type,
     structured_dtype,
-    type_size,
     unpack_value,
 )
 
@@ -50,7 +48,7 @@ def test_scalars_agree_with_pyads_ctypes(name: str) -> None:
     parsed = parse_type(name)
     assert parsed.size == size == ctypes.sizeof(plc_type)
     assert parsed.ads_type == ads_type
-    assert numpy_dtype(name).itemsize == size
+    assert parse_type(name).dtype.itemsize == size
     sample: Any = True if name == "BOOL" else (1.5 if "REAL" in name else 100)
     raw = pack_value(name, sample)
     assert bytes(plc_type(sample)) == raw
@@ -66,7 +64,7 @@ def test_case_and_spacing_do_not_matter() -> None:
 def test_bit_types() -> None:
     assert unpack_value("BIT", b"\x01") is True
     assert pack_value("BIT", 0) == b"\x00"
-    assert type_size("BIT3") == 1
+    assert parse_type("BIT3").size == 1
     assert pack_value("BIT3", 5) == b"\x05"
     assert unpack_value("BIT3", b"\xfd") == 5
     with pytest.raises(AdsCodecError):
@@ -74,16 +72,16 @@ def test_bit_types() -> None:
 
 
 def test_strings() -> None:
-    assert type_size("STRING(20)") == 21
-    assert type_size("STRING") == 81
-    assert type_size("STRING[10]") == 11
+    assert parse_type("STRING(20)").size == 21
+    assert parse_type("STRING").size == 81
+    assert parse_type("STRING[10]").size == 11
     raw = pack_value("STRING(5)", "Grüß")
     assert raw == "Grüß".encode("cp1252") + b"\0\0"
     assert unpack_value("STRING(5)", raw) == "Grüß"
-    assert numpy_dtype("STRING(5)") == np.dtype("S6")
+    assert parse_type("STRING(5)").dtype == np.dtype("S6")
     with pytest.raises(AdsCodecError):
         pack_value("STRING(3)", "abcd")
-    assert type_size("WSTRING(4)") == 10
+    assert parse_type("WSTRING(4)").size == 10
     assert unpack_value("WSTRING(4)", pack_value("WSTRING(4)", "añb")) == "añb"
 
 
@@ -94,12 +92,12 @@ def test_arrays() -> None:
     assert parsed.size == 8
     assert parsed.shape == (4,)
     assert parsed.lower_bounds == (1,)
-    assert numpy_dtype(name) == np.dtype(("<i2", (4,)))
+    assert parse_type(name).dtype == np.dtype(("<i2", (4,)))
     raw = pack_value(name, [1, -2, 3, -4])
     assert np.frombuffer(raw, dtype="<i2").tolist() == [1, -2, 3, -4]
     assert unpack_value(name, raw) == [1, -2, 3, -4]
     grid = "ARRAY [0..1, -1..1] OF USINT"
-    assert type_size(grid) == 6
+    assert parse_type(grid).size == 6
     assert unpack_value(grid, bytes(range(6))) == [[0, 1, 2], [3, 4, 5]]
     assert pack_value(grid, [[0, 1, 2], [3, 4, 5]]) == bytes(range(6))
     strings = "ARRAY [0..1] OF STRING(3)"
@@ -155,12 +153,12 @@ integer_types = st.sampled_from(
 
 @given(integer_types, st.data())
 def test_integer_round_trip(name: str, data: st.DataObject) -> None:
-    info = np.iinfo(numpy_dtype(name))
+    info = np.iinfo(parse_type(name).dtype)
     value = data.draw(st.integers(int(info.min), int(info.max)))
     raw = pack_value(name, value)
-    assert len(raw) == type_size(name)
+    assert len(raw) == parse_type(name).size
     assert unpack_value(name, raw) == value
-    assert int(np.frombuffer(raw, dtype=numpy_dtype(name))[0]) == value
+    assert int(np.frombuffer(raw, dtype=parse_type(name).dtype)[0]) == value
 
 
 @given(st.floats(allow_nan=True, width=32))

@@ -24,6 +24,7 @@ from fastcs_ethercat.bench.context import BenchContext, BenchPlan
 from fastcs_ethercat.bench.esi_sections import default_extra_esi, esi_full_parse
 from fastcs_ethercat.bench.report import (
     REQUIRED_KEYS,
+    fault_lines,
     scan_line,
     summary_lines,
     write_json,
@@ -190,3 +191,20 @@ def test_each_scan_is_judged_by_its_own_target_only() -> None:
     assert "25.0% changing with a monitoring  [target MISSED]" in small
     assert "[target" not in middle
     assert big.count("[target met]") == 3 and "MISSED" not in big
+
+
+def test_fault_timings_are_judged_against_their_targets() -> None:
+    lines = fault_lines(
+        {
+            "stall": {"loss_s": 0.7, "recovery_s": 6.2},
+            "plc_appears": {"served_invalid": True, "live_s": 1.2},
+        }
+    )
+    assert lines == [
+        "fault stall: INVALID in 0.7 s  [target met],"
+        " valid again in 6.2 s  [target MISSED]",
+        "PLC appears after start: live in 1.2 s  [target met]",
+    ]
+    assert fault_lines({"error": "TimeoutError: no"}) == [
+        "faults: ERROR TimeoutError: no"
+    ]

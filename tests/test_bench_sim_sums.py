@@ -8,9 +8,9 @@ import random
 
 from fastcs_ethercat.ads.constants import AdsReturnCode, IndexGroup
 from fastcs_ethercat.ads.sums import SumReadItem, SumReadRequest
-from fastcs_ethercat.sim.layout import AREAS
-from fastcs_ethercat.sim.services import DevicePort, SumReadPlans
-from fastcs_ethercat.sim.target import SimTarget
+from fastcs_ethercat.twincat.layout import AREAS
+from fastcs_ethercat.twincat.services import DevicePort, SumReadPlans
+from fastcs_ethercat.twincat.target import SimTarget
 from tests.test_sim_model_support import demo_target, device
 
 

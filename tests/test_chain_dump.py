@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from fastcs_ethercat.sim.chain import load_chain
+from fastcs_ethercat.chain.file import load_chain
 from fastcs_ethercat.sim.process import SimProcess
 from fastcs_ethercat.terminals.loader import load_terminals
 from tests.chain_support import played

@@ -46,7 +46,6 @@ from fastcs_ethercat.ads.commands import (
     WriteRequest,
     WriteResponse,
     decode_request,
-    filetime_to_unix_ns,
 )
 from fastcs_ethercat.ads.connection import AmsTcpConnection
 from fastcs_ethercat.ads.constants import (
@@ -74,6 +73,7 @@ from fastcs_ethercat.ads.symbols import (
 from fastcs_ethercat.ioc.config import RouteConfig
 from fastcs_ethercat.sim.server import AmsServer
 from fastcs_ethercat.sim.udp import UdpResponder
+from tests.ads_codec import filetime_to_unix_ns
 
 NET_ID: Final = AmsNetId.parse("192.0.2.17.1.1")
 """TEST-NET NetId, so no other test's AdsLib route can clash with ours."""

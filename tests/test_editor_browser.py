@@ -26,6 +26,7 @@ import pytest
 import yaml
 
 from fastcs_ethercat.editor.pv_preview import preview_pvs
+from fastcs_ethercat.process import ChildProcess
 from fastcs_ethercat.sim.process import SimProcess
 from fastcs_ethercat.terminals.files import read_terminal_file
 
@@ -60,7 +61,6 @@ from selenium.webdriver.common.keys import Keys  # noqa: E402
 from selenium.webdriver.remote.webelement import WebElement  # noqa: E402
 from selenium.webdriver.support.ui import WebDriverWait  # noqa: E402
 
-READY = "fastcs-ethercat terminals edit ready: url="
 WIDTH = 1280
 """The narrowest window the pages must fit without scrolling sideways."""
 PREFIX = "TSTEDIT:ETH1:RIO1:MOD2"
@@ -102,27 +102,13 @@ def running_editor(folder: Path, cache: Path, *extra: str) -> Iterator[str]:
     command = [sys.executable, "-m", "fastcs_ethercat", "terminals", "edit",
                str(folder), "--esi", str(ESI), "--esi", str(FIXTURE),
                "--port", "0", *extra]  # fmt: skip
-    process = subprocess.Popen(
-        command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env
-    )
+    child = ChildProcess(command, "terminals edit", env=env, merge_stderr=True)
     try:
-        assert process.stdout is not None
-        deadline = time.monotonic() + 90
-        seen: list[str] = []
-        while time.monotonic() < deadline:
-            line = process.stdout.readline()
-            if not line:
-                break
-            seen.append(line)
-            if line.startswith(READY):
-                url = line.removeprefix(READY).strip()
-                assert url.startswith("http://127.0.0.1:")
-                yield url
-                return
-        raise AssertionError(f"no ready line from the editor: {''.join(seen)}")
+        url = child.start(90)["url"]
+        assert url.startswith("http://127.0.0.1:")
+        yield url
     finally:
-        stop_pid(process.pid)
-        process.wait(10)
+        child.close()
 
 
 @pytest.fixture(scope="module")

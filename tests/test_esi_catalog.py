@@ -14,6 +14,7 @@ import pytest
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.esi import EsiCatalog, build_catalog
 from fastcs_ethercat.esi import catalog as catalog_module
+from tests.conftest import DLS_TYPES
 from tests.conftest import EL3356_FIXTURE as FIXTURE
 from tests.conftest import ESI_SUBSET as ESI
 
@@ -34,13 +35,6 @@ DEVICES_PER_FILE = {
     "Beckhoff EP4xxx.xml": 8,
 }
 
-# The DLS terminal table of the design documents (seed 000).
-DLS_TERMINALS = [
-    "EK1100", "EK1122", "EL1014", "EL1084", "EL1124", "EL1502", "EL2024",
-    "EL2124", "EL3104", "EL3124", "EL3202", "EL3314", "EL3356-0010", "EL3602",
-    "EL3702", "EL4134", "EL4732", "ELM3704-0000", "EP3174-0002", "EP4374-0002",
-]  # fmt: skip
-
 
 def relative_name(source: str, root: Path = ESI) -> str:
     return Path(source).resolve().relative_to(root.resolve()).as_posix()
@@ -60,7 +54,7 @@ def test_every_file_lists_its_documented_device_count(shared_esi: Path) -> None:
     assert catalog.warnings == ()
 
 
-@pytest.mark.parametrize("type_name", DLS_TERMINALS)
+@pytest.mark.parametrize("type_name", DLS_TYPES)
 def test_every_dls_terminal_is_listed(catalog: EsiCatalog, type_name: str) -> None:
     newest = catalog.find(type_name)
     assert newest.type_name == type_name

@@ -192,10 +192,11 @@ def test_check_acf_leaves_this_process_alone(tmp_path: Path) -> None:
         [
             sys.executable,
             "-c",
-            "from pathlib import Path; import sys\n"
-            "from fastcs_ethercat.ioc.access import access_security_active, check_acf\n"
+            "from pathlib import Path; import ctypes, sys\n"
+            "from epicscorelibs.ioc import Com\n"
+            "from fastcs_ethercat.ioc.access import check_acf\n"
             "check_acf(Path(sys.argv[1]))\n"
-            "print(access_security_active())\n",
+            "print(bool(ctypes.c_int.in_dll(Com, 'asActive').value))\n",
             str(EXAMPLE_ACF),
         ],
         capture_output=True,

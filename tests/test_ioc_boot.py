@@ -40,8 +40,9 @@ DEMO_CHAIN = REPO_ROOT / "ioc" / "demo-chain.yaml"
 SINE = "Term 5 (EL3104).AI Compact Channel 1"  # moves all the time
 RAMP = "Term 13 (EL3602).AI Inputs Channel 2.Value"  # moves all the time
 STANDARD = "Term 5 (EL3104).AI Standard Channel 1.Value"
-LIVE_WITHIN_S = 5.0
-"""Issue 11: live values within 5 s of the PLC appearing."""
+LIVE_WITHIN_S = 25.0
+"""Live values once the PLC appears, a generous bound of the behaviour: the
+target (5 s, issue 11) is `fastcs-ethercat bench --only faults`'s figure."""
 
 
 def write_config(folder: Path, prefix: str, port: int, **settings: object) -> Path:
@@ -52,8 +53,7 @@ def write_config(folder: Path, prefix: str, port: int, **settings: object) -> Pa
 
 def everything_said(ioc: IocProcess) -> str:
     """The IOC's whole output, including what no `wait_for_line` read."""
-    while not ioc.lines.empty():
-        ioc.output.append(ioc.lines.get_nowait())
+    ioc.unread()
     return "".join(ioc.output)
 
 

@@ -3,7 +3,7 @@ writes, the per-target cache, and the boot source's order (the PLC, the
 configured chain, the cached chain, else wait).
 
 The simulator runs in this process (`SimulatorThread`, loopback sockets) or
-is reached without a socket (`sim.inprocess`); no process is started.
+is reached without a socket (`twincat.inprocess`); no process is started.
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ from typing import Any
 
 import pytest
 
+from fastcs_ethercat.chain.file import Chain, load_chain, parse_chain
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.ioc.boot import boot_source, chain_plan, live_source
 from fastcs_ethercat.ioc.chains import (
@@ -29,15 +30,15 @@ from fastcs_ethercat.ioc.config import IocConfig
 from fastcs_ethercat.ioc.discovery import discover
 from fastcs_ethercat.ioc.plan import SystemPlan
 from fastcs_ethercat.ioc.target import TargetError
-from fastcs_ethercat.sim.chain import Chain, load_chain, parse_chain
-from fastcs_ethercat.sim.inprocess import sim_clients
-from fastcs_ethercat.sim.runner import SimulatorConfig, SimulatorThread
-from fastcs_ethercat.sim.target import SimTarget
+from fastcs_ethercat.sim.runner import SimulatorConfig
 from fastcs_ethercat.terminals.loader import load_terminals
 from fastcs_ethercat.terminals.registry import TerminalRegistry
+from fastcs_ethercat.twincat.inprocess import sim_clients
+from fastcs_ethercat.twincat.target import SimTarget
 from tests.chain_support import played
 from tests.conftest import REPO_ROOT, TERMINALS_DIR
 from tests.ioc_support import free_port
+from tests.sim_thread import SimulatorThread
 
 DEMO_CHAIN = REPO_ROOT / "ioc" / "demo-chain.yaml"
 

@@ -13,7 +13,6 @@ to look behind the IOC, pyads against the simulator and its control API.
 from __future__ import annotations
 
 import asyncio
-import queue
 import re
 import subprocess
 import sys
@@ -491,17 +490,13 @@ def _monitor(demo: Demo, pv: str) -> IocProcess:
     return start_ioc(camonitor, demo.ioc.prefix, demo.ioc.env, demo.ioc.token)
 
 
-def _next_event(lines: queue.Queue[str], value: str, timeout: float) -> re.Match[str]:
+def _next_event(monitor: IocProcess, value: str, timeout: float) -> re.Match[str]:
     """The first monitor event showing `value`."""
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        try:
-            match = _CAMONITOR_LINE.match(lines.get(timeout=0.2).strip())
-        except queue.Empty:
-            continue
-        if match and match["rest"].split()[0] == value:
-            return match
-    raise AssertionError(f"no event with {value!r} in {timeout} s")
+    stamp = r"\d{4}-\d\d-\d\d \d\d:\d\d:\d\d\.\d+"
+    line = monitor.wait_for_line(rf"^\S+\s+{stamp}\s+{re.escape(value)}(\s|$)", timeout)
+    match = _CAMONITOR_LINE.match(line.strip())
+    assert match is not None, line
+    return match
 
 
 def test_error_bit_turns_its_status_pv_major_with_the_value(demo: Demo) -> None:
@@ -512,17 +507,16 @@ def test_error_bit_turns_its_status_pv_major_with_the_value(demo: Demo) -> None:
     overrange = STANDARD_CHANNEL.format(4) + ".Status.Overrange"
     error_pv, overrange_pv = demo.by_source(error), demo.by_source(overrange)
     monitor = _monitor(demo, error_pv)
-    lines = monitor.lines
     try:
-        _next_event(lines, "False", 10)
+        _next_event(monitor, "False", 10)
         put_at = time.time()
         demo.sim.set_symbol(error, 1)
         demo.sim.set_symbol(overrange, 1)
-        raised = _next_event(lines, "True", 10)
+        raised = _next_event(monitor, "True", 10)
         while_set = caget(demo.ioc, "-a", error_pv, overrange_pv)
         demo.sim.set_symbol(error, 0)
         demo.sim.set_symbol(overrange, 0)
-        cleared = _next_event(lines, "False", 10)
+        cleared = _next_event(monitor, "False", 10)
     finally:
         stop_pid(monitor.process.pid)
         monitor.process.wait(5)

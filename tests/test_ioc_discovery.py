@@ -10,8 +10,8 @@ import pytest
 import yaml
 
 from fastcs_ethercat.ads.ethercat import AlState
-from fastcs_ethercat.ioc.clients import ClientPool, split_target
-from fastcs_ethercat.ioc.config import IocConfig
+from fastcs_ethercat.ioc.clients import ClientPool
+from fastcs_ethercat.ioc.config import IocConfig, split_host_port
 from fastcs_ethercat.ioc.discovery import discover, read_symbol_version
 from fastcs_ethercat.ioc.plan import SystemPlan
 from fastcs_ethercat.sim.process import SimProcess
@@ -30,7 +30,7 @@ def chain_types(path: Path) -> list[str]:
 def discover_now(sim: SimProcess, registry: TerminalRegistry) -> SystemPlan:
     async def run() -> SystemPlan:
         config = IocConfig(prefix="TEST", target=sim.pyads_ip, ams_net_id=sim.net_id)
-        async with ClientPool.for_target(config.target) as pool:
+        async with ClientPool(config.target_host, config.target_port) as pool:
             return await discover(pool, registry, config)
 
     return asyncio.run(run())
@@ -147,9 +147,9 @@ def test_discovery_is_stable(
     assert len(keys) == len(set(keys))
 
 
-def test_split_target() -> None:
-    assert split_target("10.0.0.5") == ("10.0.0.5", 48898)
-    assert split_target("127.0.0.1:4000") == ("127.0.0.1", 4000)
+def test_split_host_port() -> None:
+    assert split_host_port("10.0.0.5") == ("10.0.0.5", 48898)
+    assert split_host_port("127.0.0.1:4000") == ("127.0.0.1", 4000)
 
 
 @pytest.mark.e2e

@@ -11,7 +11,6 @@ chain to serve meanwhile) keeps trying, and serves once the proxy is good.
 
 from __future__ import annotations
 
-import queue
 import time
 from pathlib import Path
 
@@ -44,12 +43,7 @@ LOG_LINES_PER_MINUTE = 100
 
 def drain(ioc: IocProcess) -> list[str]:
     """The IOC's output lines that came since the last drain."""
-    lines = []
-    while True:
-        try:
-            lines.append(ioc.lines.get_nowait())
-        except queue.Empty:
-            return lines
+    return ioc.unread()
 
 
 def root(ioc: IocProcess, name: str) -> str:

@@ -18,9 +18,10 @@ from fastcs_ethercat.ioc.clients import ClientPool
 from fastcs_ethercat.ioc.config import IocConfig
 from fastcs_ethercat.ioc.decode import PollLayout
 from fastcs_ethercat.ioc.discovery import discover
+from fastcs_ethercat.ioc.encode import pack_write
 from fastcs_ethercat.ioc.handles import PointHandles, acquire
 from fastcs_ethercat.ioc.plan import Point, PointKind, Source, SystemPlan
-from fastcs_ethercat.ioc.poller import Poller, pack_write
+from fastcs_ethercat.ioc.poller import Poller
 from fastcs_ethercat.sim.process import SimProcess
 from fastcs_ethercat.terminals import load_terminals
 from tests.conftest import REPO_ROOT, TERMINALS_DIR
@@ -57,7 +58,7 @@ def sim() -> Iterator[SimProcess]:
 def plan(sim: SimProcess) -> SystemPlan:
     async def run() -> SystemPlan:
         config = IocConfig(prefix="TEST", target=sim.pyads_ip, ams_net_id=sim.net_id)
-        async with ClientPool.for_target(config.target) as pool:
+        async with ClientPool(config.target_host, config.target_port) as pool:
             return await discover(pool, load_terminals([TERMINALS_DIR]), config)
 
     return asyncio.run(run())

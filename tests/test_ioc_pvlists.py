@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pytest
 
+from fastcs_ethercat.chain.file import load_chain
 from fastcs_ethercat.ioc.boot import chain_plan
 from fastcs_ethercat.ioc.clients import ClientPool
 from fastcs_ethercat.ioc.config import IocConfig
@@ -23,7 +24,6 @@ from fastcs_ethercat.ioc.pvlists import (
     autosave_text,
     write_pv_lists,
 )
-from fastcs_ethercat.sim.chain import load_chain
 from fastcs_ethercat.sim.process import SimProcess
 from fastcs_ethercat.terminals.loader import load_terminals
 from tests.conftest import REPO_ROOT

@@ -78,7 +78,7 @@ async def _discover_with_tables(
     sim: SimProcess, registry: TerminalRegistry
 ) -> tuple[SystemPlan, dict[int, SymbolTables]]:
     config = IocConfig(prefix="TEST", target=sim.pyads_ip, ams_net_id=sim.net_id)
-    async with ClientPool.for_target(config.target) as pool:
+    async with ClientPool(config.target_host, config.target_port) as pool:
         plan = await discover(pool, registry, config)
         tables = {
             m.device_id: await (await pool(sim.net_id, m.symbol_port)).upload_symbols()

@@ -18,15 +18,15 @@ from pathlib import Path
 
 import pytest
 
+from fastcs_ethercat.chain.file import parse_chain
 from fastcs_ethercat.ioc.config import IocConfig
 from fastcs_ethercat.ioc.discovery import discover
 from fastcs_ethercat.ioc.plan import SystemPlan, TerminalPlan
-from fastcs_ethercat.sim.chain import parse_chain
-from fastcs_ethercat.sim.inprocess import sim_clients
 from fastcs_ethercat.sim.process import SimProcess
-from fastcs_ethercat.sim.resolve import load_revisions
-from fastcs_ethercat.sim.target import SimTarget
 from fastcs_ethercat.terminals.loader import load_terminals
+from fastcs_ethercat.twincat.inprocess import sim_clients
+from fastcs_ethercat.twincat.resolve import load_revisions
+from fastcs_ethercat.twincat.target import SimTarget
 from tests.conftest import TERMINALS_DIR
 from tests.ioc_support import (
     IOC_COMMAND,

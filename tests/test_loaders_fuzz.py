@@ -11,9 +11,9 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from fastcs_ethercat.chain.file import parse_chain
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.ioc.config import load_ioc_config
-from fastcs_ethercat.sim.chain import parse_chain
 from fastcs_ethercat.terminals.files import parse_terminal_text
 from tests.conftest import REPO_ROOT, TERMINALS_DIR
 

@@ -27,7 +27,6 @@ from fastcs_ethercat.ads.errors import AdsCodecError
 from fastcs_ethercat.ads.frames import (
     AmsPacket,
     FrameReassembler,
-    decode_packet,
     encode_packet,
 )
 from fastcs_ethercat.ads.netid import AmsAddress, AmsNetId
@@ -36,8 +35,9 @@ from fastcs_ethercat.sim.control import ControlError, ControlRoutes, SimControl
 from fastcs_ethercat.sim.faults import FaultError, parse_fault
 from fastcs_ethercat.sim.notifications import HandleAllocator, NotificationRegistry
 from fastcs_ethercat.sim.server import AmsConnection, AmsServer
-from fastcs_ethercat.sim.target import SimTarget
 from fastcs_ethercat.sim.udp import UdpResponder
+from fastcs_ethercat.twincat.target import SimTarget
+from tests.ads_codec import decode_packet
 from tests.conftest import REPO_ROOT
 from tests.sim_support import DEVICE_PORT, IO_SERVER_PORT, StandInTarget
 

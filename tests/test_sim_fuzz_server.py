@@ -19,9 +19,10 @@ from fastcs_ethercat.ads.commands import ReadStateResponse, WriteRequest, WriteR
 from fastcs_ethercat.ads.constants import AmsCommand, IndexGroup
 from fastcs_ethercat.ads.frames import AmsPacket, FrameReassembler, encode_packet
 from fastcs_ethercat.ads.netid import AmsAddress
-from fastcs_ethercat.sim.runner import SimulatorConfig, SimulatorThread
+from fastcs_ethercat.sim.runner import SimulatorConfig
 from fastcs_ethercat.sim.server import MAX_REQUEST_SIZE
 from tests.sim_support import DEVICE_PORT, IO_SERVER_PORT, StandInTarget, request
+from tests.sim_thread import SimulatorThread
 
 TARGET = StandInTarget()
 IO_SERVER = AmsAddress(TARGET.system_net_id, IO_SERVER_PORT)

@@ -8,9 +8,10 @@ from pathlib import Path
 
 import pytest
 
+from fastcs_ethercat.chain.file import load_chain, parse_chain
 from fastcs_ethercat.errors import UserError
-from fastcs_ethercat.sim.chain import load_chain, parse_chain
-from fastcs_ethercat.sim.target import SimTarget
+from fastcs_ethercat.twincat.target import SimTarget
+from tests.conftest import DLS_TYPES
 from tests.test_sim_model_support import (
     DEMO_CHAIN,
     REPO_ROOT,
@@ -18,29 +19,6 @@ from tests.test_sim_model_support import (
     demo_target,
     target_from_text,
 )
-
-DLS_TYPES = [
-    "EK1100",
-    "EK1122",
-    "EL1014",
-    "EL1084",
-    "EL1124",
-    "EL1502",
-    "EL2024",
-    "EL2124",
-    "EL3104",
-    "EL3124",
-    "EL3202",
-    "EL3314",
-    "EL3356-0010",
-    "EL3602",
-    "EL3702",
-    "EL4134",
-    "EL4732",
-    "ELM3704-0000",
-    "EP3174-0002",
-    "EP4374-0002",
-]
 
 
 def test_demo_chain_has_every_dls_terminal_type() -> None:

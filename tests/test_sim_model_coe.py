@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import struct
 
-from fastcs_ethercat.ads.constants import AdsReturnCode, IndexGroup, coe_index_offset
+from fastcs_ethercat.ads.constants import AdsReturnCode, IndexGroup
 from fastcs_ethercat.ioc.resolve import coe_object_points
-from fastcs_ethercat.sim.coe import CoeDictionary
 from fastcs_ethercat.sim.probe import SimProbe
-from fastcs_ethercat.sim.target import SimTarget
 from fastcs_ethercat.terminals.model import CoeObject, CoeSubItem
+from fastcs_ethercat.twincat.coe import CoeDictionary
+from fastcs_ethercat.twincat.target import SimTarget
+from tests.ads_codec import coe_index_offset
 from tests.test_sim_model_support import (
     EL3104_COMPACT,
     demo_target,

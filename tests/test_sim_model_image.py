@@ -10,10 +10,10 @@ import pytest
 
 from fastcs_ethercat.ads.constants import AdsReturnCode, IndexGroup
 from fastcs_ethercat.ads.symbols import AdsSymbolEntry
-from fastcs_ethercat.sim.chain import load_chain
-from fastcs_ethercat.sim.layout import INPUTS, OUTPUTS
+from fastcs_ethercat.chain.file import load_chain
 from fastcs_ethercat.sim.probe import SimProbe
-from fastcs_ethercat.sim.target import SimTarget
+from fastcs_ethercat.twincat.layout import INPUTS, OUTPUTS
+from fastcs_ethercat.twincat.target import SimTarget
 from tests.test_sim_model_support import (
     EL1014,
     EL1502_TWO_COUNTERS,
@@ -25,8 +25,10 @@ from tests.test_sim_model_support import (
     REPO_ROOT,
     demo_target,
     device,
+    info_by_name,
     registry,
     target_from_text,
+    value_by_name,
 )
 
 CYCLE = 0.01
@@ -38,7 +40,7 @@ def run(target: SimTarget, cycles: int, start: int = 0) -> None:
 
 
 def entry(probe: SimProbe, name: str) -> AdsSymbolEntry:
-    return AdsSymbolEntry.decode(probe.info_by_name(name).data)
+    return AdsSymbolEntry.decode(info_by_name(probe, name).data)
 
 
 def test_image_sizes_and_groups() -> None:
@@ -68,7 +70,7 @@ def test_outputs_written_through_the_image_read_back_by_name() -> None:
     assert written.result == 0
     run(target, 20)
     assert target.get_symbol_value(f"{EL4134}.AO Output Channel 2") == 12345
-    assert probe.value_by_name(f"{EL4134}.AO Output Channel 2", 2).data == struct.pack(
+    assert value_by_name(probe, f"{EL4134}.AO Output Channel 2", 2).data == struct.pack(
         "<h", 12345
     )
     bit = entry(probe, f"{EL2024}.Channel 4")

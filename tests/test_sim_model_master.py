@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import pytest
 
 from fastcs_ethercat.ads.commands import ReadRequest
@@ -31,7 +33,7 @@ from fastcs_ethercat.ads.ethercat import (
 )
 from fastcs_ethercat.ads.netid import AmsNetId
 from fastcs_ethercat.sim.probe import ProbeError
-from fastcs_ethercat.sim.target import SimTarget
+from fastcs_ethercat.twincat.target import SimTarget
 from tests.test_sim_model_support import (
     DEVICE_NET_ID,
     EL1014,
@@ -257,7 +259,7 @@ def test_forced_errors_answer_in_the_result_field() -> None:
 def test_bad_payloads_answer_with_the_codec_return_code(target: SimTarget) -> None:
     probe = device(target)
     sent = probe.packet(ReadRequest(IndexGroup.SYM_VERSION, 0, 1))
-    broken = sent.with_payload(sent.payload[:-2])
+    broken = replace(sent, payload=sent.payload[:-2])
     answer = target.handle(broken)
     assert answer is not None and answer.error_code == 0
     assert (

@@ -17,6 +17,8 @@ from tests.test_sim_model_support import (
     EL4134,
     demo_target,
     device,
+    handle_of,
+    info_by_name,
 )
 
 
@@ -25,7 +27,7 @@ def version(probe: SimProbe) -> int:
 
 
 def entry(probe: SimProbe, name: str) -> AdsSymbolEntry:
-    return AdsSymbolEntry.decode(probe.info_by_name(name).data)
+    return AdsSymbolEntry.decode(info_by_name(probe, name).data)
 
 
 def test_online_change_bumps_the_version_and_moves_offsets() -> None:
@@ -49,13 +51,13 @@ def test_old_handles_fail_new_ones_work() -> None:
     probe = device(target)
     name = f"{EL4134}.AO Output Channel 4"
     target.set_symbol_value(name, 2024)
-    old = probe.handle_of(name)
+    old = handle_of(probe, name)
     target.online_change()
     stale = probe.read(IndexGroup.SYM_VALUE_BY_HANDLE, old, 2)
     assert stale.result == AdsReturnCode.DEVICE_SYMBOL_VERSION_INVALID
     write = probe.write(IndexGroup.SYM_VALUE_BY_HANDLE, old, b"\0\0")
     assert write.result == AdsReturnCode.DEVICE_SYMBOL_VERSION_INVALID
-    fresh = probe.handle_of(name)
+    fresh = handle_of(probe, name)
     # Values of surviving symbols are kept across the change.
     assert probe.read(IndexGroup.SYM_VALUE_BY_HANDLE, fresh, 2).data == struct.pack(
         "<h", 2024
@@ -72,7 +74,7 @@ def test_a_handle_stays_invalid_when_the_symbol_version_wraps() -> None:
     target = demo_target()
     probe = device(target)
     name = f"{EL4134}.AO Output Channel 4"
-    old = probe.handle_of(name)
+    old = handle_of(probe, name)
     first = version(probe)
     target.online_change()
     for each in target.devices:  # as after 255 changes: the byte wrapped
@@ -101,18 +103,18 @@ def test_upload_reflects_the_new_offsets() -> None:
 def test_online_change_can_switch_pdo_groups() -> None:
     target = demo_target()
     probe = device(target)
-    assert probe.info_by_name(f"{EL3104_COMPACT}.AI Compact Channel 1").result == 0
+    assert info_by_name(probe, f"{EL3104_COMPACT}.AI Compact Channel 1").result == 0
     target.online_change(
         {EL3104_COMPACT: "Standard", EL1502_TWO_COUNTERS: "1Ch. +/- Counter"}
     )
-    compact = probe.info_by_name(f"{EL3104_COMPACT}.AI Compact Channel 1")
+    compact = info_by_name(probe, f"{EL3104_COMPACT}.AI Compact Channel 1")
     assert compact.result == AdsReturnCode.DEVICE_SYMBOL_NOT_FOUND
     standard = entry(probe, f"{EL3104_COMPACT}.AI Standard Channel 1")
     assert standard.type_name == "AI Standard Channel 1_TYPE"
-    assert probe.info_by_name(f"{EL1502_TWO_COUNTERS}.CNT Inputs").result == 0
-    assert probe.info_by_name(f"{EL1502_TWO_COUNTERS}.CNT Inputs Channel 1").result == (
-        AdsReturnCode.DEVICE_SYMBOL_NOT_FOUND
-    )
+    assert info_by_name(probe, f"{EL1502_TWO_COUNTERS}.CNT Inputs").result == 0
+    assert info_by_name(
+        probe, f"{EL1502_TWO_COUNTERS}.CNT Inputs Channel 1"
+    ).result == (AdsReturnCode.DEVICE_SYMBOL_NOT_FOUND)
     with pytest.raises(KeyError):
         target.online_change({"Term 99 (EL9999)": "Standard"})
     with pytest.raises(ValueError):

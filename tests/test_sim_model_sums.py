@@ -28,7 +28,7 @@ from fastcs_ethercat.ads.sums import (
 )
 from fastcs_ethercat.ads.symbols import AdsSymbolEntry
 from fastcs_ethercat.sim.probe import SimProbe
-from fastcs_ethercat.sim.target import SimTarget
+from fastcs_ethercat.twincat.target import SimTarget
 from tests.test_sim_model_support import (
     EL1014,
     EL2024,
@@ -37,6 +37,8 @@ from tests.test_sim_model_support import (
     EL4134,
     demo_target,
     device,
+    handle_of,
+    info_by_name,
     target_from_text,
 )
 
@@ -57,7 +59,7 @@ def sum_read(
 
 
 def entry(probe: SimProbe, name: str) -> AdsSymbolEntry:
-    return AdsSymbolEntry.decode(probe.info_by_name(name).data)
+    return AdsSymbolEntry.decode(info_by_name(probe, name).data)
 
 
 def test_sum_read_gives_values_and_per_item_errors() -> None:
@@ -89,7 +91,7 @@ def test_sum_read_of_bits_and_by_handle() -> None:
     target.set_symbol_value(f"{EL1014}.Channel 2", True)
     target.set_symbol_value(f"{EL1014}.Channel 3", False)
     bits = [entry(probe, f"{EL1014}.Channel {n}") for n in (2, 3)]
-    handle = probe.handle_of(f"{EL3104_STANDARD}.AI Standard Channel 4.Value")
+    handle = handle_of(probe, f"{EL3104_STANDARD}.AI Standard Channel 4.Value")
     target.set_symbol_value(f"{EL3104_STANDARD}.AI Standard Channel 4.Value", -7)
     items = [SumReadItem(b.index_group, b.index_offset, 1) for b in bits]
     items.append(SumReadItem(IndexGroup.SYM_VALUE_BY_HANDLE, handle, 2))
@@ -254,7 +256,7 @@ def pyads_on_probe(
     sum_requests: list[int] = []
 
     def symbol_info(port: int, address: Any, name: str) -> SAdsSymbolEntry:
-        answer = probe.info_by_name(name, ctypes.sizeof(SAdsSymbolEntry))
+        answer = info_by_name(probe, name, ctypes.sizeof(SAdsSymbolEntry))
         if answer.result:
             raise ADSError(answer.result)
         size = ctypes.sizeof(SAdsSymbolEntry)

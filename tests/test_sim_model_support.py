@@ -8,15 +8,18 @@ takes milliseconds.
 from __future__ import annotations
 
 import functools
+import struct
 from pathlib import Path
 from typing import Final
 
+from fastcs_ethercat.ads.commands import ReadWriteResponse
+from fastcs_ethercat.ads.constants import AdsReturnCode, IndexGroup
 from fastcs_ethercat.ads.netid import AmsNetId
-from fastcs_ethercat.sim.chain import Chain, load_chain, parse_chain
-from fastcs_ethercat.sim.probe import SimProbe, device_probe
-from fastcs_ethercat.sim.resolve import registry_for
-from fastcs_ethercat.sim.target import SimTarget
+from fastcs_ethercat.chain.file import Chain, load_chain, parse_chain
+from fastcs_ethercat.sim.probe import ProbeError, SimProbe, device_probe
 from fastcs_ethercat.terminals.registry import TerminalRegistry
+from fastcs_ethercat.twincat.resolve import registry_for
+from fastcs_ethercat.twincat.target import SimTarget
 
 REPO_ROOT: Final = Path(__file__).resolve().parents[1]
 TERMINALS_DIR: Final = REPO_ROOT / "terminals"
@@ -63,3 +66,25 @@ def device(target: SimTarget, number: int = 1) -> SimProbe:
 
 def master(target: SimTarget, net_id: AmsNetId = DEVICE_NET_ID) -> SimProbe:
     return device(target).at(MASTER_PORT, net_id)
+
+
+def handle_of(probe: SimProbe, name: str) -> int:
+    """A handle by name (0xF003); raises on an error result."""
+    answer = probe.read_write(
+        IndexGroup.SYM_HANDLE_BY_NAME, 0, 4, name.encode("cp1252") + b"\0"
+    )
+    if answer.result != AdsReturnCode.NO_ERROR:
+        raise ProbeError(answer.result)
+    return struct.unpack("<I", answer.data)[0]
+
+
+def value_by_name(probe: SimProbe, name: str, length: int) -> ReadWriteResponse:
+    return probe.read_write(
+        IndexGroup.SYM_VALUE_BY_NAME, 0, length, name.encode("cp1252") + b"\0"
+    )
+
+
+def info_by_name(probe: SimProbe, name: str, length: int = 1024) -> ReadWriteResponse:
+    return probe.read_write(
+        IndexGroup.SYM_INFO_BY_NAME_EX, 0, length, name.encode("cp1252") + b"\0"
+    )

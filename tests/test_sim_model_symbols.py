@@ -36,7 +36,7 @@ from fastcs_ethercat.ads.symbols import (
     decode_symbol_table,
 )
 from fastcs_ethercat.sim.probe import SimProbe
-from fastcs_ethercat.sim.target import SimTarget
+from fastcs_ethercat.twincat.target import SimTarget
 from tests.test_sim_model_support import (
     EL1014,
     EL1502_TWO_COUNTERS,
@@ -46,7 +46,10 @@ from tests.test_sim_model_support import (
     EL3702,
     demo_target,
     device,
+    handle_of,
+    info_by_name,
     target_from_text,
+    value_by_name,
 )
 
 
@@ -152,7 +155,7 @@ def test_every_entry_reads_the_same_with_pyads_structures(
     probe: SimProbe, symbols: dict[str, AdsSymbolEntry]
 ) -> None:
     for name, entry in symbols.items():
-        raw = probe.info_by_name(name).data
+        raw = info_by_name(probe, name).data
         theirs = pyads_entry(raw)
         assert AdsSymbolEntry.decode(raw) == entry
         assert theirs.entryLength == len(raw)
@@ -230,7 +233,7 @@ def test_codec_flattens_the_uploaded_layouts(
 def test_pyads_reads_the_standard_structure_by_its_layout(target: SimTarget) -> None:
     name = f"{EL3104_STANDARD}.AI Standard Channel 1"
     target.set_symbol_value(name, {"Value": -1234, "Status": {"Overrange": True}})
-    raw = device(target).value_by_name(name, 4).data
+    raw = value_by_name(device(target), name, 4).data
     structure = (("Status", pyads.PLCTYPE_UINT, 1), ("Value", pyads.PLCTYPE_INT, 1))
     assert pyads.ads.size_of_structure(structure) == 4
     assert pyads.ads.dict_from_bytes(bytearray(raw), structure) == {
@@ -371,34 +374,36 @@ def test_pdos_outside_the_selected_group_are_not_assigned() -> None:
 
 def test_info_by_name_for_members_and_aliases(probe: SimProbe) -> None:
     member = AdsSymbolEntry.decode(
-        probe.info_by_name(f"{EL3104_STANDARD}.AI Standard Channel 2.Value").data
+        info_by_name(probe, f"{EL3104_STANDARD}.AI Standard Channel 2.Value").data
     )
     parent = AdsSymbolEntry.decode(
-        probe.info_by_name(f"{EL3104_STANDARD}.AI Standard Channel 2").data
+        info_by_name(probe, f"{EL3104_STANDARD}.AI Standard Channel 2").data
     )
     assert (member.type_name, member.size, member.index_group) == ("INT", 2, 0xF030)
     assert member.index_offset == parent.index_offset + 2
     bit = AdsSymbolEntry.decode(
-        probe.info_by_name(f"{EL3104_STANDARD}.AI Standard Channel 2.Status.Error").data
+        info_by_name(
+            probe, f"{EL3104_STANDARD}.AI Standard Channel 2.Status.Error"
+        ).data
     )
     assert (bit.type_name, bit.index_group) == ("BIT", 0xF031)
     assert bit.index_offset == 8 * parent.index_offset + 6
     # The entry of a one-entry PDO is reachable as TwinCAT's tree shows it.
-    alias = AdsSymbolEntry.decode(probe.info_by_name(f"{EL1014}.Channel 1.Input").data)
-    channel = AdsSymbolEntry.decode(probe.info_by_name(f"{EL1014}.Channel 1").data)
+    alias = AdsSymbolEntry.decode(info_by_name(probe, f"{EL1014}.Channel 1.Input").data)
+    channel = AdsSymbolEntry.decode(info_by_name(probe, f"{EL1014}.Channel 1").data)
     assert (alias.index_group, alias.index_offset) == (
         channel.index_group,
         channel.index_offset,
     )
     element = AdsSymbolEntry.decode(
-        probe.info_by_name(f"{EL3702}.Ch1 Sample 0[3]").data
+        info_by_name(probe, f"{EL3702}.Ch1 Sample 0[3]").data
     )
-    whole = AdsSymbolEntry.decode(probe.info_by_name(f"{EL3702}.Ch1 Sample 0").data)
+    whole = AdsSymbolEntry.decode(info_by_name(probe, f"{EL3702}.Ch1 Sample 0").data)
     assert (element.type_name, element.index_offset) == ("INT", whole.index_offset + 6)
 
 
 def test_names_are_case_insensitive(probe: SimProbe) -> None:
-    upper = probe.info_by_name(f"{EL3104_COMPACT}.AI COMPACT CHANNEL 3".upper())
+    upper = info_by_name(probe, f"{EL3104_COMPACT}.AI COMPACT CHANNEL 3".upper())
     assert upper.result == 0
 
 
@@ -413,8 +418,8 @@ def test_names_are_case_insensitive(probe: SimProbe) -> None:
     ],
 )
 def test_unknown_names_answer_symbol_not_found(probe: SimProbe, name: str) -> None:
-    assert probe.info_by_name(name).result == AdsReturnCode.DEVICE_SYMBOL_NOT_FOUND
-    assert probe.value_by_name(name, 8).result == AdsReturnCode.DEVICE_SYMBOL_NOT_FOUND
+    assert info_by_name(probe, name).result == AdsReturnCode.DEVICE_SYMBOL_NOT_FOUND
+    assert value_by_name(probe, name, 8).result == AdsReturnCode.DEVICE_SYMBOL_NOT_FOUND
     handle = probe.read_write(
         IndexGroup.SYM_HANDLE_BY_NAME, 0, 4, name.encode() + b"\0"
     )
@@ -425,9 +430,9 @@ def test_short_reads_of_a_value_give_its_first_bytes(probe: SimProbe) -> None:
     """A value read shorter than its symbol gets the first bytes (facts 9);
     a symbol entry or a handle does not fit a short buffer (0x705)."""
     name = f"{EL3104_STANDARD}.AI Standard Channel 1"
-    whole = probe.value_by_name(name, 4).data
-    assert probe.value_by_name(name, 2).data == whole[:2]
-    assert probe.info_by_name(name, 10).result == AdsReturnCode.DEVICE_INVALID_SIZE
+    whole = value_by_name(probe, name, 4).data
+    assert value_by_name(probe, name, 2).data == whole[:2]
+    assert info_by_name(probe, name, 10).result == AdsReturnCode.DEVICE_INVALID_SIZE
     answer = probe.read_write(
         IndexGroup.SYM_HANDLE_BY_NAME, 0, 2, name.encode() + b"\0"
     )
@@ -438,13 +443,13 @@ def test_handles_read_write_and_release() -> None:
     target = demo_target()
     probe = device(target)
     name = f"{EL3104_COMPACT}.AI Compact Channel 2"
-    handle = probe.handle_of(name)
+    handle = handle_of(probe, name)
     target.set_symbol_value(name, 1234)
     assert probe.read(IndexGroup.SYM_VALUE_BY_HANDLE, handle, 2).data == struct.pack(
         "<h", 1234
     )
-    assert probe.value_by_name(name, 2).data == struct.pack("<h", 1234)
-    output = probe.handle_of("Term 15 (EL4134).AO Output Channel 3")
+    assert value_by_name(probe, name, 2).data == struct.pack("<h", 1234)
+    output = handle_of(probe, "Term 15 (EL4134).AO Output Channel 3")
     write = probe.write(IndexGroup.SYM_VALUE_BY_HANDLE, output, struct.pack("<h", -500))
     assert write.result == 0
     assert target.get_symbol_value("Term 15 (EL4134).AO Output Channel 3") == -500
@@ -461,7 +466,7 @@ def test_handles_read_write_and_release() -> None:
 def test_bit_symbols_read_and_write_one_byte() -> None:
     target = demo_target()
     probe = device(target)
-    handle = probe.handle_of(f"{EL2024}.Channel 3")
+    handle = handle_of(probe, f"{EL2024}.Channel 3")
     assert probe.write(IndexGroup.SYM_VALUE_BY_HANDLE, handle, b"\x01").result == 0
     assert target.get_symbol_value(f"{EL2024}.Channel 3") is True
     assert probe.read(IndexGroup.SYM_VALUE_BY_HANDLE, handle, 1).data == b"\x01"

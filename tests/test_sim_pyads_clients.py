@@ -5,7 +5,6 @@ its own notifications."""
 from __future__ import annotations
 
 import json
-import subprocess
 import sys
 from collections.abc import Iterator
 from pathlib import Path
@@ -13,6 +12,7 @@ from pathlib import Path
 import pytest
 import yaml
 
+from fastcs_ethercat.process import ChildProcess
 from fastcs_ethercat.sim.process import SimProcess
 from tests.conftest import REPO_ROOT
 
@@ -64,20 +64,22 @@ def sim(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SimProcess]:
 
 
 def test_clients_in_separate_processes_get_only_their_own(sim: SimProcess) -> None:
-    processes = [
-        subprocess.Popen(
+    clients = [
+        ChildProcess(
             [sys.executable, "-c", CLIENT_SCRIPT, sim.pyads_ip, NET_ID, str(index)],
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
+            "client",
         )
         for index in range(CLIENTS)
     ]
+    for client in clients:
+        client.launch()
     results = []
-    for process in processes:
-        out, err = process.communicate(timeout=60)
-        assert process.returncode == 0, err
-        results.append(json.loads(out))
+    for client in clients:
+        try:
+            assert client.wait(60) == 0, client.stderr_text()
+            results.append(json.loads("\n".join(client.lines)))
+        finally:
+            client.close()
     assert sim.counters()["connections_accepted"] >= CLIENTS
     handles = {result["handle"] for result in results}
     assert len(handles) == CLIENTS

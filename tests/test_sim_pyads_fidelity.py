@@ -22,15 +22,15 @@ import yaml
 
 from fastcs_ethercat.ads.client import AdsClient, AdsHandleInvalidError
 from fastcs_ethercat.ads.constants import AdsReturnCode, EtherCatMasterGroup
-from fastcs_ethercat.ads.ethercat import decode_crc_totals
 from fastcs_ethercat.ioc.clients import ClientPool
 from fastcs_ethercat.ioc.config import IocConfig
 from fastcs_ethercat.ioc.discovery import discover
 from fastcs_ethercat.ioc.plan import SystemPlan
-from fastcs_ethercat.sim.runner import SimulatorThread
-from fastcs_ethercat.sim.target import SimTarget
 from fastcs_ethercat.terminals.loader import load_terminals
+from fastcs_ethercat.twincat.target import SimTarget
+from tests.ads_codec import decode_crc_totals
 from tests.conftest import REPO_ROOT, TERMINALS_DIR
+from tests.sim_thread import SimulatorThread
 
 NET_ID: Final = "192.0.2.63.1.1"
 DEVICE_NET_ID: Final = "192.0.2.63.2.1"
@@ -257,7 +257,7 @@ def test_the_ioc_client_on_an_older_twincat(tmp_path: Path) -> None:
             config = IocConfig(
                 prefix="OLD", target=f"127.0.0.1:{port}", ams_net_id=OLD_NET_ID
             )
-            async with ClientPool.for_target(config.target) as pool:
+            async with ClientPool(config.target_host, config.target_port) as pool:
                 plan = await discover(pool, load_terminals([TERMINALS_DIR]), config)
             return tables, version, plan
 

@@ -13,8 +13,9 @@ from urllib.parse import quote
 
 import pytest
 
-from fastcs_ethercat.sim.runner import SimulatorConfig, SimulatorThread
+from fastcs_ethercat.sim.runner import SimulatorConfig
 from tests.sim_support import StandInTarget
+from tests.sim_thread import SimulatorThread
 
 
 @pytest.fixture(scope="module")

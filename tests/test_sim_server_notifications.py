@@ -16,7 +16,6 @@ from fastcs_ethercat.ads.commands import (
     DeleteDeviceNotificationResponse,
     DeviceNotification,
     ReadWriteResponse,
-    filetime_to_unix_ns,
 )
 from fastcs_ethercat.ads.constants import (
     AdsReturnCode,
@@ -24,7 +23,7 @@ from fastcs_ethercat.ads.constants import (
     IndexGroup,
     TransmissionMode,
 )
-from fastcs_ethercat.ads.frames import AmsPacket, decode_packet
+from fastcs_ethercat.ads.frames import AmsPacket
 from fastcs_ethercat.ads.netid import AmsAddress
 from fastcs_ethercat.ads.sums import (
     SumAddNotificationsRequest,
@@ -34,6 +33,7 @@ from fastcs_ethercat.ads.sums import (
 )
 from fastcs_ethercat.sim.notifications import HandleAllocator, NotificationRegistry
 from fastcs_ethercat.sim.runner import Simulator, SimulatorConfig
+from tests.ads_codec import decode_packet, filetime_to_unix_ns
 from tests.sim_support import CLIENT, DEVICE_PORT, RawClient, StandInTarget, request
 
 MS = 1_000_000

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from fastcs_ethercat.process import parse_ready_line
+from fastcs_ethercat.process import ChildProcess, parse_ready_line
 from fastcs_ethercat.sim.process import SimProcess, SimProcessError
 from tests.conftest import REPO_ROOT
 
@@ -70,18 +70,16 @@ def test_sigint_and_sigterm_stop_cleanly() -> None:
 
 def test_cli_prints_the_ready_line_with_default_host() -> None:
     args = [*CLI, "--chain", str(DEMO_CHAIN), "--port", "0", "--udp-port", "0"]
-    process = subprocess.Popen(args, stdout=subprocess.PIPE, text=True)
+    child = ChildProcess(args, "sim")
     try:
-        assert process.stdout is not None
-        line = process.stdout.readline().strip()
-        fields = parse_ready_line(line, "sim")
-        assert fields is not None, line
+        fields = child.start(60)
+        assert parse_ready_line(child.lines[0], "sim") == fields  # its first line
         assert fields["tcp"].startswith("127.0.0.1:")
         assert fields["udp"].startswith("127.0.0.1:")
         assert fields["control"] == "off"
     finally:
-        process.send_signal(signal.SIGTERM)
-        assert process.wait(10) == 0
+        assert child.stop() == 0  # SIGTERM: a clean exit
+        child.close()
 
 
 @pytest.mark.parametrize(

@@ -23,9 +23,10 @@ from fastcs_ethercat.ads.udp import (
     add_route_request,
     discover_request,
 )
-from fastcs_ethercat.sim.runner import SimulatorConfig, SimulatorThread
+from fastcs_ethercat.sim.runner import SimulatorConfig
 from fastcs_ethercat.sim.udp import UdpResponder
 from tests.sim_support import StandInTarget
+from tests.sim_thread import SimulatorThread
 
 NET_ID = AmsNetId.parse("10.20.30.40.1.1")
 CLIENT = AmsNetId.parse("127.0.0.1.1.20")

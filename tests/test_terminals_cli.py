@@ -14,9 +14,9 @@ import pytest
 
 from fastcs_ethercat.terminals.files import read_terminal_file
 from fastcs_ethercat.terminals.schema import schema_text
+from tests.conftest import DLS_TYPES
 
 from .test_terminals_support import (
-    DLS_TYPES,
     ESI,
     ESI_ARGS,
     FIXTURE,

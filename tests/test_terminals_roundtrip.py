@@ -13,8 +13,9 @@ from fastcs_ethercat.terminals.loader import load_terminals
 from fastcs_ethercat.terminals.saving import file_text
 from fastcs_ethercat.terminals.schema import schema_text, terminal_schema
 from fastcs_ethercat.terminals.yaml_io import SCHEMA_HEADER
+from tests.conftest import DLS_TYPES
 
-from .test_terminals_support import DLS_TYPES, ESI_ARGS, TERMINALS, cache_home, run_cli
+from .test_terminals_support import ESI_ARGS, TERMINALS, cache_home, run_cli
 
 YAML_FILES = sorted(TERMINALS.glob("*.yaml"))
 

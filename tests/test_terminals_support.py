@@ -30,29 +30,6 @@ needs_esi = pytest.mark.skipif(
     not ESI.is_dir(), reason="needs the shared Beckhoff ESI files (../shared/esi)"
 )
 
-DLS_TYPES = [
-    "EK1100",
-    "EK1122",
-    "EL1014",
-    "EL1084",
-    "EL1124",
-    "EL1502",
-    "EL2024",
-    "EL2124",
-    "EL3104",
-    "EL3124",
-    "EL3202",
-    "EL3314",
-    "EL3356-0010",
-    "EL3602",
-    "EL3702",
-    "EL4134",
-    "EL4732",
-    "ELM3704-0000",
-    "EP3174-0002",
-    "EP4374-0002",
-]
-
 
 @dataclass(frozen=True)
 class CliResult:

@@ -14,9 +14,9 @@ from typing import Any
 from fastcs_ethercat.ioc.app import root_controller
 from fastcs_ethercat.ioc.config import IocConfig
 from fastcs_ethercat.ioc.controllers.root import RootController
-from fastcs_ethercat.sim.runner import SimulatorThread
-from fastcs_ethercat.sim.target import SimTarget
+from fastcs_ethercat.twincat.target import SimTarget
 from tests.conftest import TERMINALS_DIR
+from tests.sim_thread import SimulatorThread
 
 BEAMLINE_PREFIX = "BL21I-EA-ECAT-01"
 """A Diamond beamline prefix: 16 characters, as long as they come."""

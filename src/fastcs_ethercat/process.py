@@ -9,19 +9,24 @@ The simulator and the IOC each print one ready line once they serve:
 starts a command, keeps reading its output (so it never blocks on a full
 pipe), waits for its ready line and stops it (SIGTERM, then SIGKILL) by PID.
 The simulator (`sim.process`), the benchmarks, the demo and the tests all use
-these, so there is one protocol and one way to launch.
+these, so there is one protocol and one way to launch; `free_port` gives
+them the loopback ports they serve on.
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
+import socket
 import subprocess
 import tempfile
 import threading
 import time
 from collections.abc import Mapping, Sequence
 from typing import IO, Final, Self
+
+from fastcs_ethercat.loopback import LOOPBACK
 
 READY_FORMAT: Final = "fastcs-ethercat {kind} ready:"
 STOP_TIMEOUT_S: Final = 10.0
@@ -62,12 +67,16 @@ class ChildProcess:
         *,
         env: Mapping[str, str] | None = None,
         stdin_pipe: bool = False,
+        merge_stderr: bool = False,
     ) -> None:
         self.args = list(args)
         self.kind = kind
         self.env = dict(env) if env is not None else None
         self.stdin_pipe = stdin_pipe
         """Hold the child's stdin: a child that exits at EOF follows us."""
+        self.merge_stderr = merge_stderr
+        """stderr into `lines` with stdout, in order (tests that read the
+        log), not into a temporary file."""
         self.lines: list[str] = []
         self.fields: dict[str, str] = {}
         self.started_at = 0.0
@@ -76,22 +85,28 @@ class ChildProcess:
         self._log: IO[str] | None = None
         self._reader: threading.Thread | None = None
 
-    def start(self, timeout: float) -> dict[str, str]:
-        """Start and wait for the ready line; its fields (raise with the log)."""
-        self._log = tempfile.TemporaryFile(  # noqa: SIM115 - lives with the process
-            "w+", prefix=f"{self.kind}-", suffix=".log"
-        )
+    def launch(self) -> None:
+        """Start, reading its output from now on; `start` also waits."""
+        if not self.merge_stderr:
+            self._log = tempfile.TemporaryFile(  # noqa: SIM115 - lives with it
+                "w+", prefix=f"{self.kind}-", suffix=".log"
+            )
         self.started_at = time.monotonic()
         self._process = subprocess.Popen(
             self.args,
             stdin=subprocess.PIPE if self.stdin_pipe else subprocess.DEVNULL,
             stdout=subprocess.PIPE,
-            stderr=self._log,
+            stderr=subprocess.STDOUT if self.merge_stderr else self._log,
             text=True,
             env=self.env,
         )
         self._reader = threading.Thread(target=self._read_stdout, daemon=True)
         self._reader.start()
+
+    def start(self, timeout: float) -> dict[str, str]:
+        """Start and wait for the ready line; its fields (raise with the log)."""
+        self.launch()
+        assert self._process is not None and self._reader is not None
         deadline = self.started_at + timeout
         while time.monotonic() < deadline:
             if self.ready_at is not None:
@@ -120,6 +135,12 @@ class ChildProcess:
             self.lines.append(line)
 
     @property
+    def popen(self) -> subprocess.Popen[str]:
+        """The running child (its stdin, when held)."""
+        assert self._process is not None, "not started"
+        return self._process
+
+    @property
     def pid(self) -> int:
         assert self._process is not None, "not started"
         return self._process.pid
@@ -129,9 +150,13 @@ class ChildProcess:
         return None if self._process is None else self._process.poll()
 
     def wait(self, timeout: float) -> int:
-        """The exit code, once the process has exited (TimeoutExpired if not)."""
+        """The exit code, once the process has exited (TimeoutExpired if not)
+        and its output is all in `lines`."""
         assert self._process is not None, "not started"
-        return self._process.wait(timeout)
+        code = self._process.wait(timeout)
+        if self._reader is not None:
+            self._reader.join(timeout)
+        return code
 
     def stderr_text(self) -> str:
         """What the process wrote to stderr so far."""
@@ -175,3 +200,21 @@ class ChildProcess:
 
     def __exit__(self, *exc_info: object) -> None:
         self.close()
+
+
+def free_port(*, tcp: bool, udp: bool) -> int:
+    """A loopback port free right now for TCP and/or UDP (for a child to serve on)."""
+    for _ in range(100):
+        with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
+            probe.bind((LOOPBACK, 0))
+            port = int(probe.getsockname()[1])
+        kinds = [socket.SOCK_STREAM] * tcp + [socket.SOCK_DGRAM] * udp
+        with contextlib.ExitStack() as held:
+            try:
+                for kind in kinds:
+                    sock = held.enter_context(socket.socket(socket.AF_INET, kind))
+                    sock.bind((LOOPBACK, port))
+            except OSError:
+                continue
+        return port
+    raise OSError("no free loopback port")

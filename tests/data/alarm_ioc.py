@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import ctypes
 import enum
 import sys
 import threading
@@ -38,7 +39,6 @@ from fastcs_ethercat.ioc.access import (
     COE_GROUP,
     OUTPUTS_GROUP,
     AccessSecurity,
-    access_security_active,
 )
 from fastcs_ethercat.ioc.alarms import (
     Severity,
@@ -48,6 +48,13 @@ from fastcs_ethercat.ioc.alarms import (
     set_alarms,
 )
 from fastcs_ethercat.ioc.launch import LaunchOptions, build_transports
+
+
+def _access_security_active() -> bool:
+    """Whether EPICS access security is on (after iocInit loaded an ACF)."""
+    from epicscorelibs.ioc import Com
+
+    return bool(ctypes.c_int.in_dll(Com, "asActive").value)
 
 
 class Mode(enum.Enum):
@@ -126,7 +133,7 @@ async def handle(controller: AlarmTestController, line: str) -> int:
             await attribute.update(attribute.datatype.validate(float(value)))
             return 1
         case ["asactive"]:
-            return int(access_security_active())
+            return int(_access_security_active())
     raise ValueError(f"unknown command {line!r}")
 
 

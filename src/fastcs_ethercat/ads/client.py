@@ -238,10 +238,6 @@ class AdsClient:
         return f"{self.address} via {self.host}:{self.tcp_port}"
 
     @property
-    def is_open(self) -> bool:
-        return self._port is not None and not self._closed
-
-    @property
     def connection(self) -> AmsTcpConnection:
         """The connection this client's requests travel on."""
         return self._connection
@@ -567,16 +563,6 @@ class AdsClient:
             AdsResponse,
             by_handle=True,
         )
-
-    async def write_by_handles(
-        self, writes: Sequence[tuple[int, bytes]]
-    ) -> list[AdsError | None]:
-        """Write (handle, data) pairs (0xF081, or single writes where the
-        target refuses sum writes): per item None or its own error."""
-        results = await self.sum_write(
-            [SumWriteItem(IndexGroup.SYM_VALUE_BY_HANDLE, h, d) for h, d in writes]
-        )
-        return self._handle_errors("write", [h for h, _ in writes], results)
 
     async def release_handles(self, handles: Sequence[int]) -> list[AdsError | None]:
         """Release handles (0xF006 items of a 0xF081 sum, or single writes):

@@ -49,23 +49,6 @@ def filetime_from_unix_ns(unix_ns: int) -> int:
     return FILETIME_UNIX_EPOCH + unix_ns // 100
 
 
-def filetime_to_unix_ns(filetime: int) -> int:
-    """Nanoseconds since the Unix epoch for FILETIME ticks."""
-    return (filetime - FILETIME_UNIX_EPOCH) * 100
-
-
-def filetime_from_datetime(moment: datetime) -> int:
-    """FILETIME ticks of an aware datetime (a naive one is taken as UTC)."""
-    if moment.tzinfo is None:
-        moment = moment.replace(tzinfo=UTC)
-    delta = moment - _FILETIME_START
-    return (
-        delta.days * 86_400 * FILETIME_TICKS_PER_SECOND
-        + delta.seconds * FILETIME_TICKS_PER_SECOND
-        + delta.microseconds * 10
-    )
-
-
 def filetime_to_datetime(filetime: int) -> datetime:
     """Aware UTC datetime of FILETIME ticks (microsecond resolution)."""
     return _FILETIME_START + timedelta(microseconds=filetime // 10)
@@ -74,11 +57,6 @@ def filetime_to_datetime(filetime: int) -> datetime:
 def notification_time_from_ms(milliseconds: float) -> int:
     """Max delay / cycle time field value (100 ns units) for milliseconds."""
     return round(milliseconds * NOTIFICATION_TIME_UNITS_PER_MS)
-
-
-def notification_time_to_ms(units: int) -> float:
-    """Milliseconds for a max delay / cycle time field value."""
-    return units / NOTIFICATION_TIME_UNITS_PER_MS
 
 
 # -- shared pieces ----------------------------------------------------------

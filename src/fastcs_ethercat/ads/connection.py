@@ -165,7 +165,7 @@ class AmsTcpConnection:
         self.host = host
         self.reconnect = reconnect
         """After a loss: connect again with the next request (True), or fail
-        every request until `reopen` (False: the owner decides, e.g. an IOC
+        every request until closed (False: the owner opens another, e.g. an IOC
         that must re-resolve its symbols first: the target that dropped the
         connection may come back with another configuration)."""
         self.tcp_port = tcp_port
@@ -300,10 +300,6 @@ class AmsTcpConnection:
             self._session.forget(invoke_id)
             self._drop_waiter(invoke_id)
             raise
-
-    def reopen(self) -> None:
-        """Let the next request connect again after a loss (`reconnect=False`)."""
-        self._lost_why = None
 
     async def close(self) -> None:
         """Close the socket; every request in flight fails, none is accepted."""

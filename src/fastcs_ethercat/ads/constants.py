@@ -204,12 +204,6 @@ COE_COMPLETE_ACCESS_FLAG: Final = 0x100
 """Bit 8 of a CoE SDO index offset requests complete access."""
 
 
-def coe_index_offset(index: int, subindex: int, complete_access: bool = False) -> int:
-    """Index offset of a CoE SDO request: index << 16 | subindex (| 0x100)."""
-    flag = COE_COMPLETE_ACCESS_FLAG if complete_access else 0
-    return (index << 16) | flag | (subindex & 0xFF)
-
-
 class AdsDataType(IntEnum):
     """ADS type ids of symbol and data-type entries (ADST_*)."""
 

@@ -12,7 +12,7 @@ padding to the entry length. The extras are kept verbatim.
 from __future__ import annotations
 
 import struct
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Final, Self
 
@@ -295,55 +295,3 @@ def _walk(
                 path, item.type_name, item.data_type, base + item.offset, item.size
             )
         )
-
-
-@dataclass(frozen=True, slots=True)
-class MemberSpec:
-    """Input to `layout_structure`: one member's name, type and byte size."""
-
-    name: str
-    type_name: str
-    data_type: AdsDataType | int
-    size: int
-
-
-def layout_structure(
-    name: str,
-    members: Sequence[MemberSpec],
-    pack: int = 1,
-    comment: str = "",
-) -> AdsDataTypeEntry:
-    """A structure entry with members placed one after another.
-
-    Offsets align to min(member size, `pack`) bytes; pack=1 is the packed
-    layout of TwinCAT's I/O process-image types (e.g. Status u16 at +0,
-    Value INT at +2).
-    """
-    offset = 0
-    items: list[AdsDataTypeEntry] = []
-    largest = 1
-    for member in members:
-        alignment = max(1, min(member.size, pack))
-        largest = max(largest, alignment)
-        offset = -(-offset // alignment) * alignment
-        items.append(
-            AdsDataTypeEntry(
-                name=member.name,
-                type_name=member.type_name,
-                size=member.size,
-                data_type=member.data_type,
-                flags=DataTypeFlag.DATA_ITEM,
-                offset=offset,
-            )
-        )
-        offset += member.size
-    size = -(-offset // largest) * largest
-    return AdsDataTypeEntry(
-        name=name,
-        type_name="",
-        size=size,
-        data_type=AdsDataType.BIGTYPE,
-        flags=DataTypeFlag.DATA_TYPE,
-        comment=comment,
-        sub_items=tuple(items),
-    )

@@ -279,13 +279,3 @@ def encode_crc_totals(totals: Sequence[int]) -> bytes:
     """Group 0x12 offset 0: per slave in bus order, its ports' CRC error
     counters added, u32 each (Beckhoff FB_EcGetAllSlaveCrcErrors)."""
     return pack(f"<{len(totals)}I", *totals)
-
-
-def decode_crc_totals(raw: bytes | bytearray | memoryview) -> tuple[int, ...]:
-    if len(raw) % 4:
-        raise AdsCodecError(
-            f"CRC totals: length {len(raw)} is not a multiple of 4",
-            AdsReturnCode.DEVICE_INVALID_SIZE,
-        )
-    reader = ByteReader(raw, "CRC totals")
-    return tuple(reader.u32() for _ in range(len(raw) // 4))

@@ -12,7 +12,7 @@ Layout (facts file section 1, little-endian):
 from __future__ import annotations
 
 import struct
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Final
 
 from fastcs_ethercat.ads.constants import (
@@ -70,9 +70,6 @@ class AmsPacket:
             invoke_id=self.invoke_id,
             payload=payload,
         )
-
-    def with_payload(self, payload: bytes) -> AmsPacket:
-        return replace(self, payload=payload)
 
 
 def encode_ams_header(packet: AmsPacket) -> bytes:
@@ -155,23 +152,6 @@ def decode_tcp_header(header: bytes | bytearray | memoryview) -> int:
             AdsReturnCode.INVALID_AMS_LENGTH,
         )
     return length
-
-
-def decode_packet(frame: bytes | bytearray | memoryview) -> AmsPacket:
-    """Decode exactly one whole AMS/TCP frame."""
-    if len(frame) < AMS_TCP_HEADER_SIZE:
-        raise AdsCodecError(
-            f"AMS/TCP frame needs {AMS_TCP_HEADER_SIZE} header bytes, got {len(frame)}",
-            AdsReturnCode.INVALID_AMS_LENGTH,
-        )
-    length = decode_tcp_header(frame[:AMS_TCP_HEADER_SIZE])
-    body = frame[AMS_TCP_HEADER_SIZE:]
-    if len(body) != length:
-        raise AdsCodecError(
-            f"AMS/TCP header says {length} bytes follow, frame has {len(body)}",
-            AdsReturnCode.INVALID_AMS_LENGTH,
-        )
-    return decode_ams(body)
 
 
 class FrameReassembler:

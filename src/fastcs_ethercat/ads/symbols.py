@@ -21,7 +21,6 @@ from fastcs_ethercat.ads.wire import (
     ByteReader,
     FixedRecord,
     TableEntry,
-    decode_text,
     encode_text,
     enum_or_int,
     pack,
@@ -135,13 +134,6 @@ class AdsSymbolEntry(TableEntry):
         return entry, entry_length
 
 
-def decode_symbol_entry(
-    raw: bytes | bytearray | memoryview, offset: int = 0
-) -> tuple[AdsSymbolEntry, int]:
-    """Decode the entry starting at `offset`; return it and its entry length."""
-    return AdsSymbolEntry.decode_at(raw, offset)
-
-
 decode_symbol_table = AdsSymbolEntry.decode_table
 """Every entry of a 0xF00B table (`count` of them, from 0xF00F)."""
 encode_symbol_table = AdsSymbolEntry.encode_table
@@ -180,12 +172,3 @@ def encode_symbol_name(name: str) -> bytes:
     """The write data of a by-name request (0xF003, 0xF004, 0xF009): the name
     and a NUL, as pyads sends it."""
     return encode_text(name) + b"\0"
-
-
-def decode_symbol_name(data: bytes | bytearray | memoryview) -> str:
-    """The name in a by-name request's write data: text up to the first NUL.
-
-    pyads encodes the name as UTF-8 while TwinCAT names are Windows-1252; the
-    two agree for ASCII names, which is what the I/O symbol table holds.
-    """
-    return decode_text(bytes(data).split(b"\0", 1)[0])

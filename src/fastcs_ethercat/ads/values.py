@@ -260,14 +260,6 @@ def unpack_value(type_name: str, raw: bytes | bytearray | memoryview) -> Any:
     return parse_type(type_name).unpack(raw)
 
 
-def type_size(type_name: str) -> int:
-    return parse_type(type_name).size
-
-
-def numpy_dtype(type_name: str) -> np.dtype[Any]:
-    return parse_type(type_name).dtype
-
-
 def array_type_name(lower: int, upper: int, element: str) -> str:
     """TwinCAT's spelling of a one-dimensional array type."""
     return f"ARRAY [{lower}..{upper}] OF {element}"

@@ -134,24 +134,6 @@ def exactly(
     return ByteReader(raw, what)
 
 
-def check_u32(value: int, what: str) -> int:
-    """Reject values that do not fit an unsigned 32-bit field."""
-    if not 0 <= value <= 0xFFFF_FFFF:
-        raise AdsCodecError(
-            f"{what}={value} does not fit in u32", AdsReturnCode.DEVICE_INVALID_DATA
-        )
-    return value
-
-
-def check_u16(value: int, what: str) -> int:
-    """Reject values that do not fit an unsigned 16-bit field."""
-    if not 0 <= value <= 0xFFFF:
-        raise AdsCodecError(
-            f"{what}={value} does not fit in u16", AdsReturnCode.DEVICE_INVALID_DATA
-        )
-    return value
-
-
 def read_c_string(reader: ByteReader, length: int, what: str) -> str:
     """A string of known length that must be followed by its NUL."""
     text = reader.take(length)

@@ -1,6 +1,6 @@
 """Simulated systems of any size, written as chain files into a scratch dir.
 
-Chain files follow `sim/chain.py`. Start-up chains repeat the demo system's
+Chain files follow `chain/file.py`. Start-up chains repeat the demo system's
 mix of terminal types (every type in `terminals/`, dynamic PDOs included);
 scan chains are couplers plus EL3104s (36 selected symbols each) whose
 inputs either never change or change every poll.

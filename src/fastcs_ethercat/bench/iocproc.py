@@ -40,8 +40,10 @@ def write_ioc_config(
     terminals: Path,
     poll_rate_hz: float,
     deadbands: dict[str, float] | None = None,
+    chain: Path | None = None,
 ) -> Path:
-    """An IOC instance file (see `ioc/config.py`); target comes by flag."""
+    """An IOC instance file (see `ioc/config.py`); target comes by flag;
+    `chain`: what it serves while the target does not answer."""
     config: dict[str, object] = {
         "prefix": prefix,
         "target": "127.0.0.1:48898",
@@ -51,6 +53,8 @@ def write_ioc_config(
     }
     if deadbands:
         config["deadbands"] = deadbands
+    if chain is not None:
+        config["chain"] = str(chain.resolve())
     path.write_text(yaml.safe_dump(config, sort_keys=False))
     return path
 

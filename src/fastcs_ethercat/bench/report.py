@@ -36,6 +36,12 @@ BIG_SCAN_SYMBOLS = 10_000
 """A scan of at least this many symbols is the ~10 000 case of the rate target."""
 UPDATES_TARGET_PER_S = 50_000.0
 """~10 000 symbols changing every cycle: updates one CA client receives."""
+LOSS_TARGET_S = 1.0
+"""A lost target to every PV INVALID with COMM (issue 5)."""
+RECOVERY_TARGET_S = 5.0
+"""The target back to PVs valid and updating (issue 5)."""
+LIVE_TARGET_S = 5.0
+"""An IOC started without its PLC: live values after the PLC appears (issue 11)."""
 ESI_RATIO_TARGET = 1.5
 """Full parse of every device against a plain lxml parse of the same files."""
 
@@ -107,7 +113,30 @@ def summary_lines(document: dict[str, Any]) -> list[str]:
             )
         else:
             lines.append(f"latency @{rate} Hz: {_figure(value)}")
+    return lines + fault_lines(document.get("faults"))
+
+
+def fault_lines(faults: Any) -> list[str]:
+    """Loss and recovery per fault, live values once the PLC appears."""
+    if not isinstance(faults, dict) or {"error", "skipped"} & faults.keys():
+        return [] if faults is None else [f"faults: {_figure(faults)}"]
+    lines = []
+    for kind, value in faults.items():
+        if kind == "plc_appears":
+            live = _seconds(value.get("live_s"), LIVE_TARGET_S)
+            lines.append(f"PLC appears after start: live in {live}")
+        else:
+            loss = _seconds(value.get("loss_s"), LOSS_TARGET_S)
+            back = _seconds(value.get("recovery_s"), RECOVERY_TARGET_S)
+            lines.append(f"fault {kind}: INVALID in {loss}, valid again in {back}")
     return lines
+
+
+def _seconds(value: Any, target: float) -> str:
+    """A duration and its verdict against `target` (at most)."""
+    if isinstance(value, int | float):
+        return f"{value} s" + _verdict(value <= target)
+    return _figure(value)
 
 
 def scan_line(entry: dict[str, Any]) -> str:

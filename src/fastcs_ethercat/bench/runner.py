@@ -15,16 +15,21 @@ from collections.abc import Awaitable, Callable, Collection, Mapping
 from pathlib import Path
 from typing import Any, Final, TypeVar
 
-from fastcs_ethercat.bench import esi_sections, ioc_sections, scan_section
+from fastcs_ethercat.bench import (
+    esi_sections,
+    fault_section,
+    ioc_sections,
+    scan_section,
+)
 from fastcs_ethercat.bench.bytecode import compile_package
 from fastcs_ethercat.bench.context import BenchContext
 from fastcs_ethercat.bench.machine import describe_machine
 from fastcs_ethercat.bench.repeater import stop_own_repeaters
 from fastcs_ethercat.bench.report import SCAN_KEYS
-from fastcs_ethercat.cli.ports import free_port
 from fastcs_ethercat.loopback import EPICS_LOOPBACK_ENV
+from fastcs_ethercat.process import free_port
 
-SECTIONS: Final = ("esi", "start", "scan", "latency")
+SECTIONS: Final = ("esi", "start", "scan", "latency", "faults")
 SKIPPED: Final = {"skipped": "section not selected"}
 _T = TypeVar("_T")
 Progress = Callable[[str], object]
@@ -76,6 +81,7 @@ async def run_sections(
         "scan_deadband": SKIPPED,
         "latency_ms": SKIPPED,
         "rss_mb": SKIPPED,
+        "faults": SKIPPED,
         "machine": describe_machine(),
     }
     if "esi" in sections:
@@ -128,6 +134,12 @@ async def run_sections(
                 f"latency at {rate:g} Hz",
             )
         document["latency_ms"] = latency
+    if "faults" in sections:
+        document["faults"] = await _guarded(
+            lambda: fault_section.fault_timings(context),
+            progress,
+            "fault loss and recovery, PLC appearing",
+        )
     return document
 
 

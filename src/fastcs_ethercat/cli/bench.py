@@ -37,6 +37,7 @@ class Section(StrEnum):
     START = "start"
     SCAN = "scan"
     LATENCY = "latency"
+    FAULTS = "faults"
 
 
 SECTIONS = tuple(str(section) for section in Section)

@@ -8,13 +8,13 @@ server holds them, serves on free ports of its own and says so.
 
 from __future__ import annotations
 
-import contextlib
 import socket
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Final
 
 from fastcs_ethercat.loopback import LOOPBACK
+from fastcs_ethercat.process import free_port
 
 CA_SERVER_PORT: Final = 5064
 PVA_SERVER_PORT: Final = 5075
@@ -62,21 +62,3 @@ def _tcp_free(port: int) -> bool:
         except OSError:
             return False
     return True
-
-
-def free_port(*, tcp: bool, udp: bool) -> int:
-    """A loopback port free right now for TCP and/or UDP."""
-    for _ in range(100):
-        with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
-            probe.bind((LOOPBACK, 0))
-            port = int(probe.getsockname()[1])
-        kinds = [socket.SOCK_STREAM] * tcp + [socket.SOCK_DGRAM] * udp
-        with contextlib.ExitStack() as held:
-            try:
-                for kind in kinds:
-                    sock = held.enter_context(socket.socket(socket.AF_INET, kind))
-                    sock.bind((LOOPBACK, port))
-            except OSError:
-                continue
-        return port
-    raise OSError("no free loopback port")

@@ -99,10 +99,10 @@ def sim_command(
     terminals_dir(terminals)
     apply_log_level(log_level)
 
-    from fastcs_ethercat.sim.chain import load_chain
-    from fastcs_ethercat.sim.resolve import load_revisions
+    from fastcs_ethercat.chain.file import load_chain
     from fastcs_ethercat.sim.runner import SimulatorConfig, serve
-    from fastcs_ethercat.sim.target import SimTarget
+    from fastcs_ethercat.twincat.resolve import load_revisions
+    from fastcs_ethercat.twincat.target import SimTarget
 
     target = SimTarget.from_chain(
         load_chain(chain),

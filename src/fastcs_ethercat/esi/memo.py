@@ -30,7 +30,7 @@ from .model import (
 from .xmltext import Element
 
 if TYPE_CHECKING:
-    from .dictionary import Defaults, ObjectFacts, Rows, TypeTable
+    from .dictionary_types import Defaults, ObjectFacts, Rows, TypeTable
 
 Parsed = TypeVar("Parsed")
 

@@ -162,14 +162,6 @@ class EsiDataType(NamedTuple):
     array_lbound: int | None = None
     array_elements: int | None = None
 
-    @property
-    def is_enum(self) -> bool:
-        return bool(self.enum_items)
-
-    @property
-    def is_array(self) -> bool:
-        return self.array_elements is not None
-
 
 class EsiCoeSubItem(NamedTuple):
     """One sub-index of a CoE object, with type facts and defaults merged."""

@@ -135,13 +135,6 @@ def load_access_security(path: Path) -> None:
         raise UserError("EPICS did not accept the access security file", path=path)
 
 
-def access_security_active() -> bool:
-    """Whether EPICS access security is on (after iocInit loaded an ACF)."""
-    from epicscorelibs.ioc import Com
-
-    return bool(ctypes.c_int.in_dll(Com, "asActive").value)
-
-
 def assign_access_group(
     attributes: Iterable[Attribute[Any, Any]], group: str, *, reads: bool = False
 ) -> list[str]:

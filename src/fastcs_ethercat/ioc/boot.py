@@ -42,7 +42,7 @@ from fastcs_ethercat.terminals.model import TerminalType
 from fastcs_ethercat.terminals.registry import TerminalRegistry
 
 if TYPE_CHECKING:  # chain files are read only without the PLC or with `chain:`
-    from fastcs_ethercat.sim.chain import Chain
+    from fastcs_ethercat.chain.file import Chain
 
 logger = logging.getLogger(__name__)
 
@@ -89,8 +89,8 @@ async def chain_plan(
     chain: Chain, registry: TerminalRegistry, config: IocConfig, origin: str
 ) -> SystemPlan:
     """What discovery would find on a PLC that runs `chain` (no network)."""
-    from fastcs_ethercat.sim.inprocess import sim_clients
-    from fastcs_ethercat.sim.target import SimTarget
+    from fastcs_ethercat.twincat.inprocess import sim_clients
+    from fastcs_ethercat.twincat.target import SimTarget
 
     target = SimTarget(chain, registry, revisions=_by_revision(registry))
     async with sim_clients(target) as clients:
@@ -118,7 +118,7 @@ def chain_source(
     (the connection is made only when something asks for a client)."""
 
     async def from_file() -> tuple[SystemPlan, Connection]:
-        from fastcs_ethercat.sim.chain import load_chain
+        from fastcs_ethercat.chain.file import load_chain
 
         origin = f"the chain file {path}"
         plan = await chain_plan(load_chain(path), registry, config, origin)
@@ -166,8 +166,8 @@ def boot_source(config: IocConfig, registry: TerminalRegistry) -> PlanSource:
 def checked_chain(path: Path, registry: TerminalRegistry) -> Chain:
     """The chain file at `path`, its types known to `registry` (else a
     one-line `UserError` naming the file and line)."""
-    from fastcs_ethercat.sim.chain import load_chain
-    from fastcs_ethercat.sim.resolve import resolve_chain
+    from fastcs_ethercat.chain.file import load_chain
+    from fastcs_ethercat.twincat.resolve import resolve_chain
 
     chain = load_chain(path)
     resolve_chain(chain, registry)
@@ -181,7 +181,7 @@ async def _offline_plan(
     why: str,
 ) -> tuple[SystemPlan, Connection] | None:
     """The configured chain, else the cached one, as a plan to serve now."""
-    from fastcs_ethercat.sim.resolve import resolve_chain
+    from fastcs_ethercat.twincat.resolve import resolve_chain
 
     if configured is not None:
         chain, origin = configured, f"the chain file {config.chain}"

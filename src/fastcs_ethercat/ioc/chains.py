@@ -30,7 +30,7 @@ from fastcs_ethercat.terminals.yaml_io import dump_yaml
 from fastcs_ethercat.terminals.yaml_style import HexInt
 
 if TYPE_CHECKING:  # read and checked only once kept, not at import
-    from fastcs_ethercat.sim.chain import Chain
+    from fastcs_ethercat.chain.file import Chain
 
 logger = logging.getLogger(__name__)
 
@@ -41,7 +41,7 @@ _UNSAFE: Final = re.compile(r"[^A-Za-z0-9.-]+")
 
 
 def chain_data(plan: SystemPlan) -> dict[str, Any]:
-    """`plan` as a chain file's content (`sim/chain.py`)."""
+    """`plan` as a chain file's content (`chain/file.py`)."""
     system: dict[str, Any] = {"net_id": plan.net_id}
     if plan.symbol_version < 0:  # the device port did not answer 0xF008
         system["symbol_version_on_device_port"] = False
@@ -102,7 +102,7 @@ def chain_text(plan: SystemPlan, source: str) -> str:
 def write_chain(plan: SystemPlan, source: str, path: Path) -> Chain:
     """Write `plan` as a chain file at `path` (atomically) and return it as
     read back: what is written is always a chain the simulator accepts."""
-    from fastcs_ethercat.sim.chain import parse_chain
+    from fastcs_ethercat.chain.file import parse_chain
 
     text = chain_text(plan, source)
     chain = parse_chain(text, path)
@@ -137,7 +137,7 @@ def remember(plan: SystemPlan, target: str) -> None:
 
 def cached_chain(target: str) -> Chain | None:
     """The last chain `target` showed, if one is kept and still reads."""
-    from fastcs_ethercat.sim.chain import load_chain
+    from fastcs_ethercat.chain.file import load_chain
 
     path = cache_path(target)
     if not path.is_file():

@@ -1,4 +1,6 @@
-"""One open `AdsClient` per (NetId, port), all on one connection to the PLC.
+"""The client pool: one open `AdsClient` per (NetId, port), all on one TCP
+connection to the PLC's router (whether a request may go out is
+`ioc.connection`'s).
 
 TwinCAT routes by the AMS header, so the pool keeps one TCP connection to the
 target's router and hands out clients for every AMS address behind it (I/O
@@ -25,14 +27,6 @@ ClientFactory = Callable[[str, int], Awaitable[AdsClient]]
 """`await factory(net_id, ams_port)` -> an open client the factory owns."""
 
 
-def split_target(target: str) -> tuple[str, int]:
-    """`host` or `host:port` (ADS TCP) -> (host, port)."""
-    host, _, port = target.rpartition(":")
-    if host and port.isdigit():
-        return host, int(port)
-    return target, ADS_TCP_PORT
-
-
 class ClientPool:
     """Shared open clients to one router address (`host:tcp_port`)."""
 
@@ -45,11 +39,6 @@ class ClientPool:
         self.connection = self._new_connection()
         self._clients: dict[tuple[str, int], AdsClient] = {}
         self._lock = asyncio.Lock()
-
-    @classmethod
-    def for_target(cls, target: str, timeout_ms: int | None = None) -> ClientPool:
-        host, port = split_target(target)
-        return cls(host, port, timeout_ms)
 
     async def get(self, net_id: str, ams_port: int) -> AdsClient:
         """The open client for `net_id:ams_port` (opened on first use; raises

@@ -1,4 +1,5 @@
-"""The IOC's ADS connections to one target, and whether the target answers now.
+"""The controllers' handle on one target: may a request go out now, and to
+which client (the sockets and clients themselves are `ioc.clients`' pool).
 
 One `Connection` is shared down the controller tree: the root's plan source
 creates it, its `Reconnection` component ties its state to the supervisor's
@@ -21,7 +22,9 @@ from fastcs_ethercat.ioc.supervisor import LinkState
 
 @dataclass
 class Connection:
-    """Shared ADS clients to one target, the link state, the read-only rule."""
+    """One target as the controllers see it: the link state, the read-only
+    rule, the calls up to the supervisor, and the pool's clients once the
+    target is prepared."""
 
     pool: ClientPool
     net_id: str

@@ -44,7 +44,7 @@ _T = TypeVar("_T")
 
 
 class ControllableTarget(Protocol):
-    """The model operations the control API reaches (`sim.target.SimTarget`)."""
+    """The model operations the control API reaches (`twincat.target.SimTarget`)."""
 
     def get_symbol_value(self, name: str) -> Any: ...
 

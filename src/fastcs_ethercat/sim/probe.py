@@ -8,7 +8,6 @@ would over TCP, minus the transport.
 from __future__ import annotations
 
 import itertools
-import struct
 from dataclasses import dataclass, field
 from typing import Final, Protocol
 
@@ -16,9 +15,7 @@ from fastcs_ethercat.ads import commands
 from fastcs_ethercat.ads.commands import AdsRequest, AdsResponse
 from fastcs_ethercat.ads.constants import (
     REQUEST_FLAGS,
-    AdsReturnCode,
     AmsPort,
-    IndexGroup,
 )
 from fastcs_ethercat.ads.frames import AmsPacket
 from fastcs_ethercat.ads.netid import AmsAddress, AmsNetId
@@ -113,27 +110,6 @@ class SimProbe:
         answer = self.request(commands.WriteControlRequest(ads_state, device_state))
         assert isinstance(answer, commands.WriteControlResponse)
         return answer
-
-    # -- symbol helpers -----------------------------------------------------------
-
-    def handle_of(self, name: str) -> int:
-        """A handle by name (0xF003); raises on an error result."""
-        answer = self.read_write(
-            IndexGroup.SYM_HANDLE_BY_NAME, 0, 4, name.encode("cp1252") + b"\0"
-        )
-        if answer.result != AdsReturnCode.NO_ERROR:
-            raise ProbeError(answer.result)
-        return struct.unpack("<I", answer.data)[0]
-
-    def value_by_name(self, name: str, length: int) -> commands.ReadWriteResponse:
-        return self.read_write(
-            IndexGroup.SYM_VALUE_BY_NAME, 0, length, name.encode("cp1252") + b"\0"
-        )
-
-    def info_by_name(self, name: str, length: int = 1024) -> commands.ReadWriteResponse:
-        return self.read_write(
-            IndexGroup.SYM_INFO_BY_NAME_EX, 0, length, name.encode("cp1252") + b"\0"
-        )
 
 
 def device_probe(

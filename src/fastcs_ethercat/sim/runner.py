@@ -2,8 +2,6 @@
 cycle that moves the model and pushes notifications, all in one event loop.
 
     Simulator(target, SimulatorConfig(...))   start() / stop() inside a loop
-    SimulatorThread(target, config)           the same in a background thread,
-                                              for blocking clients like pyads
     serve(target, config)                     the CLI: ready line, SIGINT/SIGTERM
 """
 
@@ -15,11 +13,10 @@ import logging
 import os
 import signal
 import sys
-import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Final, Protocol, Self
+from typing import Any, Final, Protocol
 
 from fastcs_ethercat.ads.constants import ADS_TCP_PORT, ADS_UDP_PORT
 from fastcs_ethercat.ads.netid import AmsNetId
@@ -39,11 +36,10 @@ log = logging.getLogger(__name__)
 CONTROL_HOST: Final = LOOPBACK
 """The control API can force values and break things: loopback only, always."""
 DEFAULT_CYCLE_SECONDS: Final = 0.010
-THREAD_START_TIMEOUT_SECONDS: Final = 30.0
 
 
 class RunnableTarget(SimTargetLike, ControllableTarget, Protocol):
-    """Everything the simulator asks of the model (`sim.target.SimTarget`)."""
+    """Everything the simulator asks of the model (`twincat.target.SimTarget`)."""
 
     @property
     def system_net_id(self) -> AmsNetId: ...
@@ -218,88 +214,3 @@ def _stop_at_eof(fd: int, stop: asyncio.Event) -> None:
         data = b""
     if not data:
         stop.set()
-
-
-class SimulatorThread:
-    """A `Simulator` on its own event loop in a daemon thread.
-
-    For in-process tests whose client blocks (pyads): the test thread stays
-    free to block while the simulator answers.
-
-        with SimulatorThread(target, SimulatorConfig(port=0, udp_port=0)) as sim:
-            sim.endpoints.tcp_port, sim.control.counters()
-    """
-
-    def __init__(
-        self, target: RunnableTarget, config: SimulatorConfig | None = None
-    ) -> None:
-        self.simulator = Simulator(
-            target, config or SimulatorConfig(port=0, udp_port=0)
-        )
-        self._loop = asyncio.new_event_loop()
-        self._thread = threading.Thread(target=self._run, name="simulator", daemon=True)
-        self._started = threading.Event()
-        self._stop: asyncio.Event | None = None
-        self._error: BaseException | None = None
-
-    @property
-    def control(self) -> SimControl:
-        return self.simulator.control
-
-    @property
-    def endpoints(self) -> Endpoints:
-        return self.simulator.endpoints()
-
-    @property
-    def loop(self) -> asyncio.AbstractEventLoop:
-        return self._loop
-
-    def call(self, function: Callable[[], Any]) -> Any:
-        """Run `function` on the simulator's loop and return its result."""
-        future = asyncio.run_coroutine_threadsafe(_as_coroutine(function), self._loop)
-        return future.result(timeout=THREAD_START_TIMEOUT_SECONDS)
-
-    def start(self) -> None:
-        self._thread.start()
-        if not self._started.wait(THREAD_START_TIMEOUT_SECONDS):
-            raise RuntimeError("the simulator thread did not start")
-        if self._error is not None:
-            self._thread.join()
-            raise self._error
-
-    def stop(self) -> None:
-        if self._thread.is_alive() and self._stop is not None:
-            self._loop.call_soon_threadsafe(self._stop.set)
-        self._thread.join(THREAD_START_TIMEOUT_SECONDS)
-
-    def __enter__(self) -> Self:
-        self.start()
-        return self
-
-    def __exit__(self, *exc_info: object) -> None:
-        self.stop()
-
-    def _run(self) -> None:
-        asyncio.set_event_loop(self._loop)
-        try:
-            self._loop.run_until_complete(self._main())
-        finally:
-            self._loop.close()
-
-    async def _main(self) -> None:
-        self._stop = asyncio.Event()
-        try:
-            await self.simulator.start()
-        except BaseException as error:
-            self._error = error
-            self._started.set()
-            return
-        self._started.set()
-        try:
-            await self._stop.wait()
-        finally:
-            await self.simulator.stop()
-
-
-async def _as_coroutine(function: Callable[[], Any]) -> Any:
-    return function()

@@ -79,7 +79,7 @@ _SUM_NOTIFICATION_GROUPS: Final = frozenset(
 
 
 class SimTargetLike(Protocol):
-    """What the server needs from the model (`sim.target.SimTarget`)."""
+    """What the server needs from the model (`twincat.target.SimTarget`)."""
 
     @property
     def net_ids(self) -> Collection[AmsNetId]: ...

@@ -103,16 +103,6 @@ class CatioTerminal(_Catio):
     selected_pdo_group: str | None = None
 
 
-def not_importable(located: LocatedYaml) -> UserError:
-    """The one line a catio file gets when loaded without ESI."""
-    return UserError(
-        "a catio-terminals file (terminal_types:) has no bit offsets: convert it "
-        "with `fastcs-ethercat terminals import FILE --esi SRC --out DIR`",
-        path=located.path,
-        where=located.where((CATIO_LAYOUT_KEY,)),
-    )
-
-
 def read_catio_file(path: Path) -> tuple[LocatedYaml, dict[str, CatioTerminal]]:
     """The validated types of a catio file (unknown keys are errors)."""
     text = read_text_bounded(path, MAX_CATIO_BYTES, what="catio file")
@@ -351,6 +341,5 @@ __all__ = [
     "CatioTerminal",
     "ImportResult",
     "import_catio",
-    "not_importable",
     "read_catio_file",
 ]

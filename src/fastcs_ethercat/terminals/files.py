@@ -53,10 +53,19 @@ def parse_terminal_text(text: str, path: Path | str) -> dict[str, TerminalType]:
             where=located.where(()),
         )
     if CATIO_LAYOUT_KEY in located.data:
-        from fastcs_ethercat.terminals.catio_import import not_importable
-
         raise not_importable(located)
     return validate_terminals(located, located.data, ())
+
+
+def not_importable(located: LocatedYaml) -> UserError:
+    """The one line a catio file gets when loaded as terminal YAML (without
+    ESI: `catio_import` converts it)."""
+    return UserError(
+        "a catio-terminals file (terminal_types:) has no bit offsets: convert it "
+        "with `fastcs-ethercat terminals import FILE --esi SRC --out DIR`",
+        path=located.path,
+        where=located.where((CATIO_LAYOUT_KEY,)),
+    )
 
 
 def validate_terminals(

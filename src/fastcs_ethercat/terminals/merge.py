@@ -45,14 +45,6 @@ class ChangeReport:
     choices: list[str] = field(default_factory=list)
     """Choices of the old file that could not be kept, and why."""
 
-    @property
-    def is_empty(self) -> bool:
-        return not any(
-            getattr(self, name)
-            for name in self.__dataclass_fields__
-            if name != "type_name"
-        )
-
     def lines(self) -> list[str]:
         """One line per change, for the CLI summary."""
         labelled = [

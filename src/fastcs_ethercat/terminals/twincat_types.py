@@ -24,11 +24,3 @@ BIT_SIZES: dict[str, int] = {
 }
 
 _BITN = re.compile(r"^BIT([2-8])$")
-
-
-def primitive_bit_size(type_name: str) -> int | None:
-    """Bits of a primitive TwinCAT type (`BIT2`..`BIT8` included), else None."""
-    found = _BITN.match(type_name)
-    if found:
-        return int(found.group(1))
-    return BIT_SIZES.get(type_name)

@@ -75,10 +75,11 @@ from fastcs_ethercat.ioc.controllers.terminal import (
     al_state_view,
 )
 from fastcs_ethercat.ioc.datatypes import AlarmBool, IntegralFloat, alarm_enum
+from fastcs_ethercat.ioc.encode import pack_write
 from fastcs_ethercat.ioc.handles import PointHandles, acquire, release
 from fastcs_ethercat.ioc.health import COMM, READ, Health
 from fastcs_ethercat.ioc.plan import MasterPlan, Point, TerminalPlan
-from fastcs_ethercat.ioc.poller import Poller, PollStats, pack_write
+from fastcs_ethercat.ioc.poller import Poller, PollStats
 from fastcs_ethercat.ioc.setpoints import Setpoints
 from fastcs_ethercat.ioc.supervisor import LinkState
 from fastcs_ethercat.ioc.tasks import cancel_and_wait

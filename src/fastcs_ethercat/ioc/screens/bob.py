@@ -165,11 +165,6 @@ def write_display(tree: ElementTree.ElementTree, path: Path) -> None:
     tree.write(path, encoding="UTF-8", xml_declaration=True)
 
 
-def count_widgets(tree: ElementTree.ElementTree | ElementTree.Element) -> int:
-    """Every widget of a display, those inside groups included."""
-    return sum(1 for _ in tree.iter("widget"))
-
-
 def _widget(kind: str, box: Box, name: str) -> ElementTree.Element:
     widget = ElementTree.Element("widget", type=kind, version=WIDGET_TYPES[kind])
     _add(widget, "name", name)

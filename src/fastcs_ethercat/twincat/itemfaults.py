@@ -16,8 +16,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from fastcs_ethercat.sim.layout import AREAS, ImageArea
-from fastcs_ethercat.sim.symtab import Resolved, SymbolTable
+from fastcs_ethercat.twincat.layout import AREAS, ImageArea
+from fastcs_ethercat.twincat.symtab import Resolved, SymbolTable
 
 
 @dataclass(frozen=True, slots=True)

@@ -33,8 +33,9 @@ from fastcs_ethercat.ads.errors import AdsCodecError
 from fastcs_ethercat.ads.symbols import AdsSymbolEntry
 from fastcs_ethercat.ads.wire import STRING_ENCODING
 from fastcs_ethercat.errors import UserError
-from fastcs_ethercat.sim.resolve import ResolvedMaster, ResolvedSlave
-from fastcs_ethercat.sim.tctypes import (
+from fastcs_ethercat.terminals.symbols import ExpandedSymbol
+from fastcs_ethercat.twincat.resolve import ResolvedMaster, ResolvedSlave
+from fastcs_ethercat.twincat.tctypes import (
     EntrySpec,
     TcMember,
     TcType,
@@ -44,7 +45,6 @@ from fastcs_ethercat.sim.tctypes import (
     scalar_type,
     structure,
 )
-from fastcs_ethercat.terminals.symbols import ExpandedSymbol
 
 GENERATION_SHIFT_BYTES: Final = 16
 """How far an online change moves every offset (per change)."""

@@ -39,9 +39,9 @@ from fastcs_ethercat.ads.ethercat import (
     encode_slave_states,
 )
 from fastcs_ethercat.ads.wire import encode_text
-from fastcs_ethercat.sim.answers import fit
-from fastcs_ethercat.sim.coe import IDENTITY_INDEX, CoeDictionary, split_offset
-from fastcs_ethercat.sim.resolve import ResolvedMaster, ResolvedSlave
+from fastcs_ethercat.twincat.answers import fit
+from fastcs_ethercat.twincat.coe import IDENTITY_INDEX, CoeDictionary, split_offset
+from fastcs_ethercat.twincat.resolve import ResolvedMaster, ResolvedSlave
 
 MASTER_IDENTITY: Final = SlaveIdentity(
     vendor_id=2, product_code=0x00010003, revision=1844

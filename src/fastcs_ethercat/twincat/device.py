@@ -11,17 +11,17 @@ from typing import Any, Final
 
 from fastcs_ethercat.ads.constants import AdsReturnCode
 from fastcs_ethercat.ads.errors import AdsCodecError
-from fastcs_ethercat.sim.chain import SignalSpec, SystemSpec
-from fastcs_ethercat.sim.generators import (
+from fastcs_ethercat.chain.file import SignalSpec, SystemSpec
+from fastcs_ethercat.twincat.generators import (
     Leaf,
     SignalBank,
     default_signal,
     input_leaves,
     leaf_key,
 )
-from fastcs_ethercat.sim.image import ProcessImage
-from fastcs_ethercat.sim.itemfaults import FailingBits, error_of, failing_bits
-from fastcs_ethercat.sim.layout import (
+from fastcs_ethercat.twincat.image import ProcessImage
+from fastcs_ethercat.twincat.itemfaults import FailingBits, error_of, failing_bits
+from fastcs_ethercat.twincat.layout import (
     DATAGRAM_IN_OUT,
     DATAGRAM_OUTPUTS,
     DEV_STATE_OFFSET,
@@ -32,9 +32,9 @@ from fastcs_ethercat.sim.layout import (
     DeviceLayout,
     build_layout,
 )
-from fastcs_ethercat.sim.master import EtherCatMaster
-from fastcs_ethercat.sim.resolve import ResolvedMaster, ResolvedSlave
-from fastcs_ethercat.sim.symtab import Resolved, SymbolTable
+from fastcs_ethercat.twincat.master import EtherCatMaster
+from fastcs_ethercat.twincat.resolve import ResolvedMaster, ResolvedSlave
+from fastcs_ethercat.twincat.symtab import Resolved, SymbolTable
 
 FIRST_HANDLE: Final = 0x0000_0101
 DEV_STATE_LINK_ERROR: Final = 0x0001

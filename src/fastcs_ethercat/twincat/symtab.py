@@ -21,8 +21,13 @@ from fastcs_ethercat.ads.symbols import (
     SymbolUploadInfo2,
     encode_symbol_table,
 )
-from fastcs_ethercat.sim.layout import DeviceLayout, ImageArea, ImagePlace, SymbolDef
-from fastcs_ethercat.sim.tctypes import TcMember, TcType, data_type_entry
+from fastcs_ethercat.twincat.layout import (
+    DeviceLayout,
+    ImageArea,
+    ImagePlace,
+    SymbolDef,
+)
+from fastcs_ethercat.twincat.tctypes import TcMember, TcType, data_type_entry
 
 _PATH_PART: Final = re.compile(r"\.([^.\[\]]+)|\[\s*(-?\d+)\s*\]")
 

@@ -22,9 +22,9 @@ from typing import Final
 
 from fastcs_ethercat.ads.constants import COE_COMPLETE_ACCESS_FLAG, AdsReturnCode
 from fastcs_ethercat.ads.ethercat import SlaveIdentity
-from fastcs_ethercat.sim.answers import fit
-from fastcs_ethercat.sim.image import get_bits, raw_bytes, set_bits
 from fastcs_ethercat.terminals.model import CoeObject
+from fastcs_ethercat.twincat.answers import fit
+from fastcs_ethercat.twincat.image import get_bits, raw_bytes, set_bits
 
 IDENTITY_INDEX: Final = 0x1018
 

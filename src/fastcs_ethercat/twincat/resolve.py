@@ -23,8 +23,8 @@ from typing import Final
 
 from fastcs_ethercat.ads.ethercat import AlState, SlaveIdentity
 from fastcs_ethercat.ads.netid import AmsNetId
+from fastcs_ethercat.chain.file import Chain, MasterSpec, SlaveSpec
 from fastcs_ethercat.errors import UserError
-from fastcs_ethercat.sim.chain import Chain, MasterSpec, SlaveSpec
 from fastcs_ethercat.terminals.files import terminal_file_name
 from fastcs_ethercat.terminals.load_cache import read_terminal_file_cached
 from fastcs_ethercat.terminals.loader import load_terminals, terminal_paths

@@ -25,15 +25,16 @@ from fastcs_ethercat.ads.errors import AdsCodecError
 from fastcs_ethercat.ads.ethercat import AlState
 from fastcs_ethercat.ads.frames import AmsPacket
 from fastcs_ethercat.ads.netid import AmsAddress, AmsNetId
-from fastcs_ethercat.sim.chain import Chain, SystemSpec, load_chain
-from fastcs_ethercat.sim.device import SimDevice
-from fastcs_ethercat.sim.resolve import (
+from fastcs_ethercat.chain.file import Chain, SystemSpec, load_chain
+from fastcs_ethercat.terminals.registry import TerminalRegistry
+from fastcs_ethercat.twincat.device import SimDevice
+from fastcs_ethercat.twincat.resolve import (
     ResolvedSlave,
     Revisions,
     registry_for,
     resolve_chain,
 )
-from fastcs_ethercat.sim.services import (
+from fastcs_ethercat.twincat.services import (
     DEVICE_PORT_NAME,
     IO_SERVER_NAME,
     MASTER_PORT_NAME,
@@ -46,7 +47,6 @@ from fastcs_ethercat.sim.services import (
     SlavePort,
     SystemServicePort,
 )
-from fastcs_ethercat.terminals.registry import TerminalRegistry
 
 _GROUP_COMMANDS: Final = (
     commands.ReadRequest,

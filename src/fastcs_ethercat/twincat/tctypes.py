@@ -76,14 +76,6 @@ class TcType:
         self._members_by_name.update({member.name: member for member in self.members})
 
     @property
-    def is_struct(self) -> bool:
-        return bool(self.members)
-
-    @property
-    def is_array(self) -> bool:
-        return self.element is not None
-
-    @property
     def is_bit(self) -> bool:
         """A bit-image scalar (BIT, BIT2..BIT8, a 1-bit BOOL)."""
         return self.scalar is not None and self.bit_size < 8

@@ -12,8 +12,8 @@ from typing import Any, Final
 
 from fastcs_ethercat.ads.constants import AdsReturnCode
 from fastcs_ethercat.ads.errors import AdsCodecError
-from fastcs_ethercat.sim.layout import INPUTS, ImageArea
-from fastcs_ethercat.sim.tctypes import TcType
+from fastcs_ethercat.twincat.layout import INPUTS, ImageArea
+from fastcs_ethercat.twincat.tctypes import TcType
 
 _BITS: Final = (b"\x00", b"\x01")
 

@@ -1,4 +1,5 @@
-"""The chain description: which TwinCAT system the simulator plays.
+"""The chain description: which TwinCAT system a chain file describes (the
+simulator plays it, the IOC boots from it, `chain dump` writes it).
 
 A chain file names the system's AMS NetId, its EtherCAT masters and, per
 master, the slaves (couplers and terminals) in bus order, each with its type

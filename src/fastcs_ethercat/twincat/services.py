@@ -51,13 +51,13 @@ from fastcs_ethercat.ads.sums import (
     SumWriteResponse,
 )
 from fastcs_ethercat.ads.wire import decode_text
-from fastcs_ethercat.sim.answers import Outcome, fit
-from fastcs_ethercat.sim.device import SimDevice
-from fastcs_ethercat.sim.image import read_bits, read_slice
-from fastcs_ethercat.sim.itemfaults import item_error
-from fastcs_ethercat.sim.layout import AREAS, INPUTS, OUTPUTS, ImageArea
-from fastcs_ethercat.sim.master import SlaveRuntime
-from fastcs_ethercat.sim.symtab import Resolved
+from fastcs_ethercat.twincat.answers import Outcome, fit
+from fastcs_ethercat.twincat.device import SimDevice
+from fastcs_ethercat.twincat.image import read_bits, read_slice
+from fastcs_ethercat.twincat.itemfaults import item_error
+from fastcs_ethercat.twincat.layout import AREAS, INPUTS, OUTPUTS, ImageArea
+from fastcs_ethercat.twincat.master import SlaveRuntime
+from fastcs_ethercat.twincat.symtab import Resolved
 
 VERSION: Final = (3, 1, 2103)
 """Version and build the I/O server reports (catio's dumps of real racks)."""

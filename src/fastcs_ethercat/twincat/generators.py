@@ -21,9 +21,9 @@ from typing import Final
 import numpy as np
 import numpy.typing as npt
 
-from fastcs_ethercat.sim.chain import SignalSpec
-from fastcs_ethercat.sim.layout import SymbolDef
-from fastcs_ethercat.sim.tctypes import TcType
+from fastcs_ethercat.chain.file import SignalSpec
+from fastcs_ethercat.twincat.layout import SymbolDef
+from fastcs_ethercat.twincat.tctypes import TcType
 
 KINDS: Final = ("constant", "counter", "ramp", "sine", "random_bits")
 CHANNEL_BIT_HOLD_CYCLES: Final = 100

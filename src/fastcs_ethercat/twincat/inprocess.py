@@ -23,7 +23,7 @@ from fastcs_ethercat.ads.client import AdsClient
 from fastcs_ethercat.ads.connection import AmsTcpConnection
 from fastcs_ethercat.ads.frames import FrameReassembler, encode_packet
 from fastcs_ethercat.ads.netid import AmsNetId
-from fastcs_ethercat.sim.target import SimTarget
+from fastcs_ethercat.twincat.target import SimTarget
 
 IN_PROCESS_HOST: Final = "in-process"
 """The `host` of an in-process connection, as messages show it."""
