@@ -2,7 +2,7 @@
 the same answers from single requests, decided once per connection and said
 once; and a short 0xF00F answer used for the fields it has.
 
-Against the simulator's own model in process (`sim.inprocess`): a target that
+Against the simulator's own model in process (`twincat.inprocess`): a target that
 answers 0xF080-0xF082 with 0x701, as older TwinCAT 2, pcdshub's ads-async,
 fastcs-catio's simulator and pyads' test server do.
 """
@@ -17,8 +17,8 @@ import pytest
 from fastcs_ethercat.ads.client import AdsClient
 from fastcs_ethercat.ads.constants import AdsReturnCode, IndexGroup, device_port
 from fastcs_ethercat.ads.sums import SumReadItem, SumReadResponse
-from fastcs_ethercat.sim.inprocess import sim_clients
-from fastcs_ethercat.sim.target import SimTarget
+from fastcs_ethercat.twincat.inprocess import sim_clients
+from fastcs_ethercat.twincat.target import SimTarget
 from tests.test_sim_model_support import EL3104_COMPACT, demo_target
 
 SYMBOLS = [f"{EL3104_COMPACT}.AI Compact Channel {n}" for n in range(1, 5)]

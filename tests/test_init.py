@@ -21,10 +21,10 @@ from typing import Any
 import pytest
 import yaml
 
+from fastcs_ethercat.chain.file import load_chain, parse_chain
 from fastcs_ethercat.commission.rack import ChangeKind, rack_changes, rack_slaves
 from fastcs_ethercat.esi.catalog import build_catalog
 from fastcs_ethercat.ioc.config import load_ioc_config
-from fastcs_ethercat.sim.chain import load_chain, parse_chain
 from fastcs_ethercat.sim.process import SimProcess
 from fastcs_ethercat.terminals.files import write_terminal_file
 from fastcs_ethercat.terminals.generate import terminal_from_esi

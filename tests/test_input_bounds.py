@@ -13,10 +13,10 @@ from pathlib import Path
 import pytest
 
 from fastcs_ethercat.bounded import MAX_ESI_BYTES
+from fastcs_ethercat.chain.file import parse_chain
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.esi import build_catalog, parse_file
 from fastcs_ethercat.ioc.config import load_ioc_config
-from fastcs_ethercat.sim.chain import parse_chain
 from fastcs_ethercat.terminals.files import parse_terminal_text
 from tests.conftest import loopback_env
 

@@ -51,8 +51,7 @@ def _requests_by_group(sim: SimProcess, seconds: float) -> dict[str, int]:
 
 def _said(ioc: IocProcess) -> list[str]:
     """The lines the IOC printed so far that say it uses single requests."""
-    while not ioc.lines.empty():
-        ioc.output.append(ioc.lines.get())
+    ioc.unread()
     return [line for line in ioc.output if SAID in line]
 
 

@@ -348,10 +348,7 @@ def test_ca_and_pva_setpoints_agree_after_puts_on_either(rig: Rig) -> None:
 
 def _log(rig: Rig) -> list[str]:
     """The IOC's lines printed since the last call."""
-    lines: list[str] = []
-    while not rig.ioc.lines.empty():
-        lines.append(rig.ioc.lines.get())
-    return lines
+    return rig.ioc.unread()
 
 
 def _plc(rig: Rig) -> dict[str, Any]:

@@ -134,7 +134,7 @@ def test_online_change_can_take_a_slave_off_the_bus() -> None:
     name = f"{EL4134}.AO Output Channel 4"
     target.set_symbol_value(name, 2024)
     count = len(target.devices[0].ethercat.slaves)
-    assert probe.info_by_name(f"{EL2024}.Channel 1").result == 0
+    assert info_by_name(probe, f"{EL2024}.Channel 1").result == 0
 
     target.online_change(removed=[EL2024])
 
@@ -142,9 +142,9 @@ def test_online_change_can_take_a_slave_off_the_bus() -> None:
     assert len(slaves) == count - 1
     assert EL2024 not in [runtime.slave.name for runtime in slaves]
     assert [runtime.slave.position for runtime in slaves] == list(range(count - 1))
-    gone = probe.info_by_name(f"{EL2024}.Channel 1")
+    gone = info_by_name(probe, f"{EL2024}.Channel 1")
     assert gone.result == AdsReturnCode.DEVICE_SYMBOL_NOT_FOUND
-    fresh = probe.handle_of(name)
+    fresh = handle_of(probe, name)
     assert probe.read(IndexGroup.SYM_VALUE_BY_HANDLE, fresh, 2).data == struct.pack(
         "<h", 2024
     )

@@ -504,8 +504,8 @@ def test_the_masters_symbols_carry_the_device_name_as_terminals_carry_theirs() -
     relative name (`Inputs.Frm0State`, `Channel 1`) with that node's own name.
     The bare relative name is no symbol."""
     probe = device(demo_target())
-    full = probe.info_by_name("Device 1 (EtherCAT).Inputs.Frm0State")
-    bare = probe.info_by_name("Inputs.Frm0State")
+    full = info_by_name(probe, "Device 1 (EtherCAT).Inputs.Frm0State")
+    bare = info_by_name(probe, "Inputs.Frm0State")
 
     assert full.result == AdsReturnCode.NO_ERROR
     assert AdsSymbolEntry.decode(full.data).size == 2

@@ -16,7 +16,7 @@ from enum import StrEnum
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:  # the chain format is read only where a chain is
-    from fastcs_ethercat.sim.chain import Chain
+    from fastcs_ethercat.chain.file import Chain
 
 
 @dataclass(frozen=True, slots=True)

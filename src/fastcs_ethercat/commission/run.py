@@ -140,7 +140,7 @@ def _earlier_rack(out: Path) -> list[RackSlave] | None:
     path = out / layout.CHAIN_FILE
     if not path.is_file():
         return None
-    from fastcs_ethercat.sim.chain import load_chain
+    from fastcs_ethercat.chain.file import load_chain
 
     return rack_slaves(load_chain(path))
 
@@ -167,7 +167,7 @@ def _playable(
     """`registry` with the ESI's YAML of the chain file's types it lacks (a
     chain names a type with YAML by its name alone): the chain is played
     from them."""
-    from fastcs_ethercat.sim.chain import load_chain
+    from fastcs_ethercat.chain.file import load_chain
 
     chain = load_chain(path)
     extra: dict[str, RegisteredTerminal] = {}
@@ -237,7 +237,7 @@ def _assign(described: list[Described], terminals: list[TerminalPlan]) -> None:
 
 
 def _rack(plan: SystemPlan) -> list[RackSlave]:
-    from fastcs_ethercat.sim.chain import parse_chain
+    from fastcs_ethercat.chain.file import parse_chain
 
     return rack_slaves(parse_chain(writing.chain_text(plan, "the rack")))
 
