@@ -185,4 +185,4 @@ def test_no_circles() -> None:
 def test_the_graph_sees_function_level_and_string_imports() -> None:
     graph = import_graph()
     assert f"{PACKAGE}.cli.terminals" in graph[f"{PACKAGE}.cli"]  # importlib table
-    assert f"{PACKAGE}.errors" in graph[f"{PACKAGE}.textfile"]
+    assert f"{PACKAGE}.errors" in graph[f"{PACKAGE}.bounded"]

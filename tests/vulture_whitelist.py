@@ -26,6 +26,7 @@ TYPER_COMMANDS = (
     _.edit_command,
     _.import_command,
     _.update_cache,
+    _.init_command,
 )
 FASTCS_HOOKS = (
     _.initialise,  # Controller.initialise, before the transports are built
