@@ -56,9 +56,15 @@ RUN --mount=type=bind,from=wheels,source=/wheels,target=/wheels \
         "import fastcs_ethercat.shipped as s; print(s.BUILTIN_TERMINALS_DIR)") \
     && ln -s "$shipped" /epics/ioc/terminals
 
+# The probes the ioc-instance chart runs by default (livenessExecutable,
+# preStopExecutable), reading the heartbeat file the IOC rewrites every second;
+# the chain cache and the start count in the chart's persistent /epics/runtime.
+COPY deploy/image/liveness.sh deploy/image/stop.sh /epics/ioc/
 ENV PATH=/venv/bin:$PATH \
     PYTHONUNBUFFERED=1 \
-    FASTCS_ETHERCAT_IMAGE=1
+    FASTCS_ETHERCAT_IMAGE=1 \
+    FASTCS_ETHERCAT_RUNTIME_DIR=/epics/runtime \
+    FASTCS_ETHERCAT_HEARTBEAT_FILE=/tmp/fastcs-ethercat.heartbeat
 WORKDIR /epics/ioc
 USER ioc
 # EPICS CA (5064/tcp+udp, repeater 5065/udp) and PVA (5075/tcp, 5076/udp).

@@ -23,6 +23,7 @@ from fastcs_ethercat.ioc.config import IocConfig
 from fastcs_ethercat.ioc.controllers.root import RootController
 from fastcs_ethercat.ioc.controllers.tree import PvEntry
 from fastcs_ethercat.ioc.launch import LaunchOptions, run
+from fastcs_ethercat.ioc.process_stats import deviocstats_aliases
 from fastcs_ethercat.ioc.pvlists import write_pv_lists
 from fastcs_ethercat.terminals.loader import load_terminals
 from fastcs_ethercat.terminals.registry import TerminalRegistry
@@ -75,6 +76,7 @@ def serve(
     options = LaunchOptions(
         ca=config.transports.ca,
         pva=config.transports.pva,
+        ca_aliases=deviocstats_aliases(config.prefix),
         access_security_file=config.access_security_file,
         read_only=config.read_only,
     )

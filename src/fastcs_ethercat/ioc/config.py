@@ -190,7 +190,9 @@ class IocConfig(_Strict):
         description="A chain file (the simulator's format, e.g. from "
         "`fastcs-ethercat chain dump`; relative to this file) to serve from "
         "while the target does not answer at start; without it, the chain this "
-        "target showed last (kept under $XDG_CACHE_HOME/fastcs-ethercat/chains). "
+        "target showed last (kept under $FASTCS_ETHERCAT_RUNTIME_DIR/chains, in "
+        "the image /epics/runtime/chains, else under "
+        "$XDG_CACHE_HOME/fastcs-ethercat/chains). "
         "`ioc --list-pvs` lists it without contacting the target.",
     )
     pv_lists_dir: Path | None = Field(
