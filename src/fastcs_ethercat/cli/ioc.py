@@ -139,7 +139,13 @@ def ioc_command(
         entries, warnings = app.list_pvs(settings)
         log_at_most(log, logging.WARNING, warnings, WARNINGS_SHOWN, "warnings")
         sys.stdout.write(
-            pv_list_text(entries, list_format, settings.prefix, settings.poll_rate_hz)
+            pv_list_text(
+                entries,
+                list_format,
+                settings.prefix,
+                settings.poll_rate_hz,
+                settings.archiver.policy(),
+            )
         )
         return
     if list_format is not PvListFormat.TEXT:

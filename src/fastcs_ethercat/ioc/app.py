@@ -96,7 +96,11 @@ def write_lists(root: RootController, config: IocConfig) -> None:
     assert config.pv_lists_dir is not None
     try:
         written = write_pv_lists(
-            config.pv_lists_dir, root.pvs(), config.prefix, config.poll_rate_hz
+            config.pv_lists_dir,
+            root.pvs(),
+            config.prefix,
+            config.poll_rate_hz,
+            config.archiver.policy(),
         )
     except OSError as error:
         logger.warning(

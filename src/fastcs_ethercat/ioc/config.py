@@ -33,6 +33,7 @@ from pydantic import (
 from fastcs_ethercat.ads.netid import AmsNetId
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.ioc.naming import check_alias, check_prefix
+from fastcs_ethercat.ioc.pvlists import ArchiverPolicy
 from fastcs_ethercat.shipped import BUILTIN_TERMINALS_DIR
 from fastcs_ethercat.terminals.yaml_io import parse_yaml
 from fastcs_ethercat.textfile import read_text_bounded
@@ -100,6 +101,32 @@ class RouteConfig(_Strict):
         )
         lines = text.splitlines()
         return SecretStr(lines[0] if lines else "")
+
+
+class ArchiverConfig(_Strict):
+    """What the archiver list (`pv_lists_dir`, `--list-pvs --format archiver`)
+    holds beyond the values, states and texts every site archives."""
+
+    raw: bool = Field(
+        default=False, description="Also the raw counts beside each scaled value."
+    )
+    readbacks: bool = Field(
+        default=False,
+        description="Also each output's _RBV readback (its setpoint always).",
+    )
+    include: list[str] = Field(
+        default_factory=lambda: ["*"],
+        description="Globs over the PV names below the prefix "
+        "(`ETH1:RIO1:MOD5:*`): only these are archived...",
+    )
+    exclude: list[str] = Field(
+        default_factory=list, description="...except these (globs, as include)."
+    )
+
+    def policy(self) -> ArchiverPolicy:
+        return ArchiverPolicy(
+            self.raw, self.readbacks, tuple(self.include), tuple(self.exclude)
+        )
 
 
 class TransportsConfig(_Strict):
@@ -200,6 +227,11 @@ class IocConfig(_Strict):
         description="Where to write, at every start, the Archiver Appliance list "
         "(`archiver.json`) and the autosave request file (`autosave.req`) of the "
         "PVs served (relative to this file); none when unset.",
+    )
+    archiver: ArchiverConfig = Field(
+        default=ArchiverConfig(),
+        description="Which PVs the archiver list holds (policies by kind: "
+        "docs/how-to/deploy.md).",
     )
     screens_dir: Path | None = Field(
         default=None,
