@@ -13,6 +13,7 @@ to look behind the IOC, pyads against the simulator and its control API.
 from __future__ import annotations
 
 import asyncio
+import getpass
 import queue
 import re
 import subprocess
@@ -241,6 +242,25 @@ def test_caput_reaches_the_process_image_and_the_readback_follows(
     assert in_image
     assert readback == {pv + "_RBV": "1234"}
     assert clamped
+
+
+def test_a_caput_gives_one_audit_line_naming_the_client(demo: Demo) -> None:
+    symbol = "Term 24 (EP4374-0002).AO Outputs Channel 4"
+    pv = demo.by_source(symbol, access="rw")
+    before = caget(demo.ioc, pv)[pv]
+    demo.ioc.tool("caput", pv, "321")
+    pattern = rf"^(\S+)@(\S+) {re.escape(pv)}\.VAL (\S+) -> 321$"
+    line = demo.ioc.wait_for_line(pattern, 10)
+    time.sleep(1)  # a second line would be here by now
+    while not demo.ioc.lines.empty():
+        demo.ioc.output.append(demo.ioc.lines.get_nowait())
+    found = re.match(pattern, line.strip())
+    assert found is not None
+    user, host, old = found.groups()
+
+    assert user == getpass.getuser() and host  # CA's client user and host
+    assert float(old) == float(before)
+    assert sum(bool(re.match(pattern, x.strip())) for x in demo.ioc.output) == 1
 
 
 def test_coe_write_reaches_the_simulated_slave(demo: Demo) -> None:

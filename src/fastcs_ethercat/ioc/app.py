@@ -73,6 +73,10 @@ def serve(
         idle = ca_still_initialising if config.transports.ca else lambda: True
         await root.prepare(idle)
 
+    if config.audit_puts and config.transports.ca:
+        from fastcs_ethercat.ioc.audit import install_put_audit
+
+        install_put_audit()
     options = LaunchOptions(
         ca=config.transports.ca,
         pva=config.transports.pva,

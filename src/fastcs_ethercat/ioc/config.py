@@ -238,6 +238,11 @@ class IocConfig(_Strict):
         description="Where to write Phoebus .bob screens of the chain (relative "
         "to this file; in the image /epics/opi); none when unset.",
     )
+    audit_puts: bool = Field(
+        default=True,
+        description="Log every put through the EPICS database (CA, and PVA if "
+        "served by QSRV) once on stdout: client user@host, PV.FIELD, old -> new.",
+    )
     read_only: bool = Field(
         default=False,
         description="Serve outputs (RxPDO symbols, CoE objects) read-only.",
