@@ -16,6 +16,7 @@ WRITE rules, so its puts are audited too.
 
 from __future__ import annotations
 
+import ctypes
 import re
 from pathlib import Path
 from typing import Final
@@ -23,12 +24,30 @@ from typing import Final
 _WRITE_RULE: Final = re.compile(r"\bRULE\(\s*(\d+)\s*,\s*WRITE\s*\)")
 """A WRITE rule that says nothing of TRAPWRITE (NOTRAPWRITE is kept)."""
 AUDITED_ACF: Final = "audited.acf"
+_IOLBF: Final = 1
+"""glibc's `_IOLBF` (line buffered), for `setvbuf`."""
 
 
 def install_put_audit() -> None:
     """Log every put from now on; call before iocInit (and before a site's
     ACF is loaded, which then replaces softioc's)."""
+    _line_buffered_c_stdout()
     import softioc.pvlog  # noqa: F401  (importing it installs the listener)
+
+
+def _line_buffered_c_stdout() -> None:
+    """C's stdout a line at a time (libc `setvbuf`): the put lines are
+    printed by C, and on a pipe (a container without a tty, a log shipper)
+    C would hold them until 4 KiB have gathered."""
+    libc = ctypes.CDLL(None)
+    stdout = ctypes.c_void_p.in_dll(libc, "stdout")
+    libc.setvbuf.argtypes = (
+        ctypes.c_void_p,
+        ctypes.c_char_p,
+        ctypes.c_int,
+        ctypes.c_size_t,
+    )
+    libc.setvbuf(stdout, None, _IOLBF, 0)
 
 
 def trapwrite_text(text: str) -> str:
