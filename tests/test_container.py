@@ -486,6 +486,9 @@ def test_pod_like_the_charts_stays_up_and_healthy_for_five_minutes(
                 capture_output=True,
                 timeout=120,
             )
+            subprocess.run(  # what a half-failed `kube play` leaves
+                [PODMAN, "pod", "rm", "--force", pod], capture_output=True, timeout=120
+            )
             for pid in processes_with_token(token):
                 stop_pid(pid)
     beats = [int(beat) for _, _, beat in checks if beat is not None]
