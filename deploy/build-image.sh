@@ -10,7 +10,8 @@
 # 2. The locked dependencies and the fastcs-ethercat wheel, downloaded and
 #    built on this host with its own pip settings (build/wheelhouse and
 #    build/app), by the pip of deploy/build-pip.lock in a venv of its own
-#    (build/pip-venv): the host's pip may be too old for the lock.
+#    (build/pip-venv): the host's pip may be too old for the lock. The
+#    version is setuptools-scm's (the git tag's): the wheel's, the label's.
 # 3. podman build with WHEELS=context: no network inside the build.
 #
 # podman runs through deploy/podman.sh (the options this machine needs).
@@ -91,12 +92,18 @@ say "the fastcs-ethercat wheel"
 rm -rf "$APP"
 mkdir -p "$APP"
 "${PIP[@]}" wheel --quiet --no-deps --wheel-dir "$APP" "$REPO"
+# setuptools-scm's version of the checkout (from its git tag), as the wheel's
+# name carries it: the image label says the same.
+WHEEL=$(basename "$APP"/fastcs_ethercat-*.whl)
+VERSION=${WHEEL#fastcs_ethercat-}
+VERSION=${VERSION%%-*}
 
-say "podman build -t $TAG"
+say "podman build -t $TAG (version $VERSION)"
 # --layers=false: one commit at the end, not one per instruction (each is a
 # full copy of the image with the vfs storage driver).
 "${PODMAN[@]}" build --network host --layers=false \
     --build-arg "BASE_IMAGE=$BASE_IMAGE" \
     --build-arg WHEELS=context \
+    --build-arg "VERSION=$VERSION" \
     --tag "$TAG" "$REPO" >&2
 say "built $TAG"

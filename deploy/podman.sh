@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # podman with the options a machine like ours needs (the kernel setup refuses
 # podman's defaults): vfs storage, runc with cgroupfs, and explicit ulimits
-# (never above the caller's) for `build`, `run` and `create`.
+# (never above the caller's) for `build`, `run` and `create`; `kube` (play)
+# takes no --ulimit, so its containers get them as containers.conf defaults.
 #
 #   deploy/podman.sh run --rm --network host fastcs-ethercat:local demo
 set -euo pipefail
@@ -23,5 +24,12 @@ command=${1:?usage: $0 PODMAN-COMMAND [ARGS...]}
 shift
 case $command in
     build | run | create) exec podman "${OPTIONS[@]}" "$command" "${LIMITS[@]}" "$@" ;;
+    kube)
+        conf=$(mktemp)
+        trap 'rm -f "$conf"' EXIT
+        printf '[containers]\ndefault_ulimits = ["nofile=%s:%s", "nproc=%s:%s"]\n' \
+            "$NOFILE" "$NOFILE" "$NPROC" "$NPROC" >"$conf"
+        CONTAINERS_CONF=${CONTAINERS_CONF:-$conf} podman "${OPTIONS[@]}" kube "$@"
+        ;;
     *) exec podman "${OPTIONS[@]}" "$command" "$@" ;;
 esac

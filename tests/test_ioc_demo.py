@@ -13,6 +13,8 @@ to look behind the IOC, pyads against the simulator and its control API.
 from __future__ import annotations
 
 import asyncio
+import getpass
+import queue
 import re
 import subprocess
 import sys
@@ -29,6 +31,7 @@ import fastcs_ethercat
 from fastcs_ethercat.ioc.clients import ClientPool
 from fastcs_ethercat.ioc.coe import SlaveCoe
 from fastcs_ethercat.ioc.plan import CoePoint
+from fastcs_ethercat.runtime import HEARTBEAT_ENV, RUNTIME_ENV
 from fastcs_ethercat.sim.process import SimProcess
 from tests.conftest import REPO_ROOT, TERMINALS_DIR
 from tests.ioc_support import (
@@ -105,9 +108,13 @@ def _list_pvs(config: Path, env: dict[str, str]) -> list[str]:
 @pytest.fixture(scope="module")
 def demo(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Demo]:
     token = new_token()
-    env = ioc_env(token)
-    prefix = f"TST{token[:6].upper()}"
     work = tmp_path_factory.mktemp("demo")
+    env = {  # as in the image: state in the runtime folder, a heartbeat file
+        **ioc_env(token),
+        RUNTIME_ENV: str(work / "runtime"),
+        HEARTBEAT_ENV: str(work / "heartbeat"),
+    }
+    prefix = f"TST{token[:6].upper()}"
     screens = work / "screens"
     with SimProcess(chain=DEMO_CHAIN, terminals=TERMINALS_DIR, env=env) as sim:
         config = write_ioc_config(
@@ -235,6 +242,25 @@ def test_caput_reaches_the_process_image_and_the_readback_follows(
     assert in_image
     assert readback == {pv + "_RBV": "1234"}
     assert clamped
+
+
+def test_a_caput_gives_one_audit_line_naming_the_client(demo: Demo) -> None:
+    symbol = "Term 24 (EP4374-0002).AO Outputs Channel 4"
+    pv = demo.by_source(symbol, access="rw")
+    before = caget(demo.ioc, pv)[pv]
+    demo.ioc.unread()
+    demo.ioc.tool("caput", pv, "321")
+    pattern = rf"^(\S+)@(\S+) {re.escape(pv)}\.VAL (\S+) -> 321$"
+    line = demo.ioc.wait_for_line(pattern, 10)
+    time.sleep(1)  # a second line would be here by now
+    later = demo.ioc.unread()
+    found = re.match(pattern, line.strip())
+    assert found is not None
+    user, host, old = found.groups()
+
+    assert user == getpass.getuser() and host  # CA's client user and host
+    assert float(old) == float(before)
+    assert not any(re.match(pattern, x.strip()) for x in later)
 
 
 def test_coe_write_reaches_the_simulated_slave(demo: Demo) -> None:
@@ -575,3 +601,29 @@ def test_ioc_health_pvs(demo: Demo) -> None:
     assert 0 <= float(later[p("CpuLoad")]) < 400
     assert 20 < float(later[p("MemoryUsed")]) < 4096
     assert int(later[p("PollOverruns")]) >= 0
+
+
+def test_deviocstats_names_and_the_heartbeat(demo: Demo) -> None:
+    p = demo.ioc.pv
+    names = [p(n) for n in ("HEARTBEAT", "IOC_CPU_LOAD", "MEM_USED", "START_CNT")]
+    first = caget(demo.ioc, *names)
+    later = wait_for(
+        lambda: (
+            (v := caget(demo.ioc, *names))
+            and int(v[p("HEARTBEAT")]) > int(first[p("HEARTBEAT")])
+            and v
+        ),
+        10,
+    )
+    uptime = caget(demo.ioc, "-S", p("UPTIME"))[p("UPTIME")]
+    pid, count, stamp = (demo.screens.parent / "heartbeat").read_text().split()
+    start_count = (demo.screens.parent / "runtime" / "ioc" / "start-count").read_text()
+
+    assert later and int(later[p("HEARTBEAT")]) >= 1
+    assert re.fullmatch(r"0 days, \d\d:\d\d:\d\d", uptime), uptime
+    assert 0 <= float(later[p("IOC_CPU_LOAD")]) <= 100
+    assert 20e6 < float(later[p("MEM_USED")]) < 4096e6  # bytes, as devIocStats
+    assert int(later[p("START_CNT")]) == int(start_count) == 1
+    assert int(pid) == demo.ioc.process.pid and int(count) >= 1
+    assert abs(time.time() - float(stamp)) < 10
+    assert list((demo.screens.parent / "runtime" / "chains").glob("*.yaml"))

@@ -2,9 +2,18 @@
 
 from __future__ import annotations
 
+import os
 import time
+from pathlib import Path
 
-from fastcs_ethercat.ioc.process_stats import ProcessStats, resident_mib
+from fastcs_ethercat.ioc.heartbeat import Heartbeat, count_start
+from fastcs_ethercat.ioc.process_stats import (
+    ProcessSample,
+    ProcessStats,
+    resident_mib,
+    uptime_text,
+    usable_cores,
+)
 
 
 def test_cpu_is_a_rate_between_readings_and_memory_is_resident() -> None:
@@ -29,3 +38,33 @@ def test_start_time_reads_as_local_time() -> None:
     text = stats.start_text()
 
     assert time.mktime(time.strptime(text, "%Y-%m-%d %H:%M:%S")) == 0.0
+
+
+def test_deviocstats_uptime_text_and_load_of_all_cores() -> None:
+    sample = ProcessSample(
+        uptime_s=3 * 86400 + 4 * 3600 + 5 * 60 + 6.9, cpu_percent=100.0, memory_mib=2.0
+    )
+
+    assert sample.uptime_text == uptime_text(sample.uptime_s) == "3 days, 04:05:06"
+    assert sample.cpu_percent_of_all == 100.0 / usable_cores()
+    assert sample.memory_bytes == 2 * 1024 * 1024
+
+
+def test_heartbeat_file_holds_pid_count_and_time(tmp_path: Path) -> None:
+    path = tmp_path / "heartbeat"
+    heartbeat = Heartbeat(path)
+    at_start = path.read_text().split()
+    heartbeat.beat()
+    pid, count, stamp = path.read_text().split()
+
+    assert at_start[:2] == [str(os.getpid()), "0"]
+    assert (int(pid), int(count)) == (os.getpid(), 1)
+    assert abs(time.time() - float(stamp)) < 5
+    assert [p.name for p in tmp_path.iterdir()] == ["heartbeat"]  # no temporary
+
+
+def test_start_count_counts_in_its_folder(tmp_path: Path) -> None:
+    assert [count_start(tmp_path), count_start(tmp_path)] == [1, 2]
+    (tmp_path / "start-count").write_text("garbage")
+    assert count_start(tmp_path) == 1
+    assert count_start(tmp_path / "start-count") == 0  # not a folder: not kept

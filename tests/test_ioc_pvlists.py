@@ -19,6 +19,7 @@ from fastcs_ethercat.ioc.controllers.root import RootController
 from fastcs_ethercat.ioc.controllers.tree import PvEntry
 from fastcs_ethercat.ioc.plan import SystemPlan
 from fastcs_ethercat.ioc.pvlists import (
+    ArchiverPolicy,
     archiver_items,
     autosave_names,
     autosave_text,
@@ -65,34 +66,85 @@ async def _never() -> tuple[SystemPlan, Connection]:
     raise AssertionError("the plan is given")
 
 
-def test_every_readable_pv_is_archived_once(entries: list[PvEntry]) -> None:
-    items = archiver_items(entries, POLL_RATE_HZ)
+EVERYTHING = ArchiverPolicy(raw=True, readbacks=True)
 
-    assert [i["pv"] for i in items] == [e.name for e in entries if "r" in e.access]
+
+def _archived(item: dict[str, str]) -> str:
+    return item["pv"].removeprefix("pva://")
+
+
+def test_with_raw_and_readbacks_every_readable_pv_is_archived_once(
+    entries: list[PvEntry],
+) -> None:
+    items = archiver_items(entries, POLL_RATE_HZ, EVERYTHING)
+
+    assert [_archived(i) for i in items] == [e.name for e in entries if "r" in e.access]
     assert {e.source for e in entries if "r" not in e.access} == {"command"}
 
 
-def test_plc_values_are_monitored_at_the_poll_period(entries: list[PvEntry]) -> None:
-    by_name = {i["pv"]: i for i in archiver_items(entries, POLL_RATE_HZ)}
-    polled = [e for e in entries if "r" in e.access and e.source not in ("ioc",)]
-    coe = [e for e in polled if e.source.startswith("CoE:")]
-    symbols = [e for e in polled if not e.source.startswith("CoE:")]
+def test_by_default_no_raw_twin_and_no_readback(entries: list[PvEntry]) -> None:
+    archived = {_archived(i) for i in archiver_items(entries, POLL_RATE_HZ)}
+    readable = {e.name for e in entries if "r" in e.access}
+    left_out = readable - archived
+    scaled = {e.source for e in entries if e.datatype == "ExactFloat"}
 
-    assert coe and symbols
-    assert {(by_name[e.name]["samplingmethod"], by_name[e.name]["samplingperiod"])
-            for e in symbols} == {("MONITOR", "0.1")}  # fmt: skip
-    assert {by_name[e.name]["samplingmethod"] for e in coe} == {"MONITOR"}
+    assert archived <= readable
+    assert left_out and all(
+        name.endswith("_RBV") or (name.endswith("Raw") and by.source in scaled)
+        for name, by in ((e.name, e) for e in entries if e.name in left_out)
+    )
+    assert any(n.endswith("_RBV") for n in left_out)
+    assert any(n.endswith("Raw") for n in left_out)
+    assert {n.removesuffix("_RBV") for n in left_out if n.endswith("_RBV")} <= archived
 
 
-def test_slow_diagnostics_are_scanned_and_states_monitored(
+def test_values_at_the_poll_period_states_on_change_texts_as_text(
     entries: list[PvEntry],
 ) -> None:
-    by_name = {i["pv"]: i for i in archiver_items(entries, POLL_RATE_HZ)}
-    diagnostics = [e for e in entries if e.source == "ioc" and "r" in e.access]
-    methods = {(e.datatype, by_name[e.name]["samplingmethod"]) for e in diagnostics}
+    by_name = {_archived(i): i for i in archiver_items(entries, POLL_RATE_HZ)}
+    archived = [e for e in entries if e.name in by_name]
+    symbols = [e for e in archived if e.source.startswith("Term ")]
+    numbers = [e for e in symbols if e.datatype not in ("Bool", "Enum", "String")]
+    states = [e for e in archived if e.datatype in ("Bool", "Enum")]
+    texts = [e for e in archived if e.datatype == "String"]
+    coe = [e for e in archived if e.source.startswith("CoE:")]
 
-    assert ("Int", "SCAN") in methods
-    assert {m for t, m in methods if t in ("Bool", "Enum", "String")} == {"MONITOR"}
+    assert numbers and states and texts and coe
+    assert {(by_name[e.name]["samplingmethod"], by_name[e.name]["samplingperiod"])
+            for e in numbers} == {("MONITOR", "0.1")}  # fmt: skip
+    assert {(by_name[e.name]["samplingmethod"], by_name[e.name]["samplingperiod"])
+            for e in states + coe} == {("MONITOR", "1")}  # fmt: skip
+    assert all(by_name[e.name]["pv"] == f"pva://{e.name}" for e in texts)
+    assert all(by_name[e.name]["pv"] == e.name for e in archived if e not in texts)
+
+
+def test_slow_diagnostics_are_scanned(entries: list[PvEntry]) -> None:
+    by_name = {_archived(i): i for i in archiver_items(entries, POLL_RATE_HZ)}
+    diagnostics = [e for e in entries if e.source == "ioc" and e.datatype == "Int"]
+
+    assert diagnostics
+    assert {by_name[e.name]["samplingmethod"] for e in diagnostics} == {"SCAN"}
+
+
+def test_include_and_exclude_patterns_choose_below_the_prefix(
+    entries: list[PvEntry],
+) -> None:
+    policy = ArchiverPolicy(include=("ETH1:RIO1:MOD5:*",), exclude=("*:CH4:*",))
+    archived = [
+        _archived(i) for i in archiver_items(entries, POLL_RATE_HZ, policy, "LISTS")
+    ]
+    config = IocConfig.model_validate(
+        {
+            "prefix": "LISTS",
+            "target": "127.0.0.1",
+            "archiver": {"include": ["ETH1:RIO1:MOD5:*"], "exclude": ["*:CH4:*"]},
+        }
+    )
+
+    assert archived and all(n.startswith("LISTS:ETH1:RIO1:MOD5:") for n in archived)
+    assert "LISTS:ETH1:RIO1:MOD5:CH1:Value" in archived
+    assert not [n for n in archived if ":CH4:" in n]
+    assert config.archiver.policy() == policy
 
 
 def test_autosave_holds_every_setpoint_and_coe_parameter(
@@ -116,13 +168,18 @@ def test_the_lists_are_written_into_a_folder(
         tmp_path / "lists", entries, "LISTS", POLL_RATE_HZ
     )
 
-    assert json.loads(archiver.read_text()) == archiver_items(entries, POLL_RATE_HZ)
+    assert json.loads(archiver.read_text()) == archiver_items(
+        entries, POLL_RATE_HZ, prefix="LISTS"
+    )
     assert autosave.read_text() == autosave_text(entries, "LISTS")
 
 
 def _check_against_the_pv_list(text: str, archiver: str, autosave: str) -> None:
     rows = [line.split(" ", 3) for line in text.splitlines()]
-    readable = [name for name, access, _, _ in rows if "r" in access]
+    entries = [PvEntry(*row) for row in rows]
+    readable = [
+        item["pv"] for item in archiver_items(entries, POLL_RATE_HZ, prefix="LISTS")
+    ]
     settable = [
         name
         for name, access, _, source in rows

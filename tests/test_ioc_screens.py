@@ -18,6 +18,7 @@ from fastcs_ethercat.ioc.screens.pages import (
     MAX_WIDGETS,
     Screen,
     Section,
+    Show,
     Value,
     render,
 )
@@ -56,7 +57,8 @@ def test_every_served_pv_is_on_a_screen(screens: Screens) -> None:
     shown = {
         element.text
         for tree in files.values()
-        for element in tree.iter("pv_name")
+        for tag in ("pv_name", "y_pv")  # a plot's PV is its trace's
+        for element in tree.iter(tag)
         if element.text
     }
     served = {entry.name for entry in root.pvs()}
@@ -173,6 +175,64 @@ def test_terminal_pages_group_values_by_channel_and_coe_apart(
         assert "C8000 CoE 0x8000 AI Settings" in coe_frames
     terminal_page = files["ETH1_RIO21_MOD22.bob"]
     assert not any(":C8" in (e.text or "") for e in terminal_page.iter("pv_name"))
+
+
+def test_text_pvs_show_as_text_and_arrays_as_plots(screens: Screens) -> None:
+    root, files = screens
+    kinds = {entry.name: entry.datatype for entry in root.pvs()}
+    text_widgets = [
+        widget
+        for tree in files.values()
+        for widget in tree.iter("widget")
+        if widget.get("type") in ("textupdate", "textentry")
+    ]
+    plots = [w for tree in files.values() for w in tree.iter("widget")
+             if w.get("type") == "xyplot"]  # fmt: skip
+    prefix = root.path[0]
+
+    strings = [
+        w for w in text_widgets if kinds.get(w.findtext("pv_name", "")) == "String"
+    ]
+    assert len(strings) > 20  # every terminal's Type, AlStateText, NetId, ...
+    assert all(w.findtext("format") == bob.STRING_FORMAT for w in strings)
+    assert all(w.find("format") is None for w in text_widgets if w not in strings)
+    shown_as_text = {w.findtext("pv_name") for w in strings}
+    assert f"{prefix}:ETH1:RIO1:MOD5:Type" in shown_as_text
+    assert f"{prefix}:NetId" in shown_as_text
+    assert plots and all(
+        kinds[p.findtext("traces/trace/y_pv", "")] == "Waveform" for p in plots
+    )
+    assert not [w for w in text_widgets
+                if kinds.get(w.findtext("pv_name", "")) == "Waveform"
+                and w.get("type") == "textupdate"]  # fmt: skip
+
+
+def test_units_and_ranges_are_in_the_tooltips_and_on_plot_axes() -> None:
+    rows = (
+        Value("Volts", "P:V", units="V", limits=(-10.0, 10.0), tooltip="Input"),
+        Value("Samples", "P:W", Show.PLOT, units="mA", limits=(0.0, 20.0)),
+    )
+    ((_, tree),) = render(Screen("T", "Units", (Section("S", rows),)))
+    (group,) = _root(tree).findall("widget[@type='group']")
+    (plot,) = group.findall("widget[@type='xyplot']")
+    inside = (int(group.findtext("width", "0")), int(group.findtext("height", "0")))
+    axis = plot.find("y_axes/y_axis")
+    assert axis is not None
+
+    assert plot.findtext("traces/trace/y_pv") == "P:W"
+    assert axis.findtext("title") == "mA"
+    assert (axis.findtext("minimum"), axis.findtext("maximum")) == ("0", "20")
+    assert int(plot.findtext("height", "0")) > 100
+    assert inside[1] >= 7 * 26 and _fits(plot, inside)  # the plot's rows counted
+
+
+def test_a_value_tooltip_gives_its_range_and_units(screens: Screens) -> None:
+    _, files = screens
+    page = files["ETH1_RIO1_MOD5.bob"]
+    labels = {w.findtext("text"): w.findtext("tooltip", "") for w in page.iter("widget")
+              if w.get("type") == "label"}  # fmt: skip
+
+    assert any(tip.endswith(" V)") and " to " in tip for tip in labels.values()), labels
 
 
 def test_a_screen_too_big_for_one_display_continues_on_the_next() -> None:

@@ -14,6 +14,10 @@ from pathlib import Path
 import pytest
 
 from tests.conftest import REPO_ROOT
+from tests.tagged_checkout import tagged_checkout
+
+RELEASE = "9.8.7"
+"""The version of the tagged checkout the wheel is built from (tag v9.8.7)."""
 
 
 def test_dockerfile_defaults_and_epics_containers_layout() -> None:
@@ -31,9 +35,10 @@ def test_dockerfile_defaults_and_epics_containers_layout() -> None:
 @pytest.mark.slow
 def test_wheel_carries_the_data_and_runs_outside_the_checkout(tmp_path: Path) -> None:
     dist = tmp_path / "dist"
+    checkout = tagged_checkout(tmp_path / "checkout", f"v{RELEASE}")
     subprocess.run(
         [sys.executable, "-m", "build", "--wheel", "--outdir", str(dist)],
-        cwd=REPO_ROOT,
+        cwd=checkout,
         check=True,
         capture_output=True,
     )
@@ -68,7 +73,9 @@ def test_wheel_carries_the_data_and_runs_outside_the_checkout(tmp_path: Path) ->
     assert "fastcs_ethercat/data/terminals/EL3104.yaml" in names
     assert "fastcs_ethercat/data/ioc/demo.yaml" in names
     assert any(name.endswith("licenses/LICENSE") for name in names)
-    assert version.stdout.startswith("fastcs-ethercat ")
+    assert wheel.name.startswith(f"fastcs_ethercat-{RELEASE}-")  # the tag's
+    assert version.stdout.strip() == f"fastcs-ethercat {RELEASE}"
+    assert "fastcs_ethercat/_version.py" in names
     assert where.stdout.split() == [str(shipped), "True"]
 
 

@@ -4,7 +4,9 @@
                         [--ams-net-id ID] [--poll-rate HZ] [--read-only]
                         [--acf FILE] [--chain FILE]
                         [--list-pvs [--format text|archiver|autosave]]
-                        [--log-level LEVEL]
+                        [--log-level LEVEL] [--graylog-endpoint HOST:PORT
+                        [--graylog-static-fields K:V,...]
+                        [--graylog-env-fields K:ENV,...]]
     fastcs-ethercat ioc schema
     fastcs-ethercat demo [--prefix P] [--log-level LEVEL]
 
@@ -104,6 +106,31 @@ def ioc_command(
         ),
     ] = PvListFormat.TEXT,
     log_level: LogLevelOption = None,
+    graylog_endpoint: Annotated[
+        str | None,
+        typer.Option(
+            "--graylog-endpoint",
+            metavar="HOST:PORT",
+            help="Also send the log lines to this Graylog GELF UDP input "
+            "(FastCS's option).",
+        ),
+    ] = None,
+    graylog_static_fields: Annotated[
+        str | None,
+        typer.Option(
+            "--graylog-static-fields",
+            metavar="K:V,...",
+            help="Fields with fixed values added to each Graylog message.",
+        ),
+    ] = None,
+    graylog_env_fields: Annotated[
+        str | None,
+        typer.Option(
+            "--graylog-env-fields",
+            metavar="K:ENV,...",
+            help="Fields added to each Graylog message from the environment.",
+        ),
+    ] = None,
 ) -> None:
     """Serve every terminal of a TwinCAT target as EPICS PVs (CA and PVA).
 
@@ -112,6 +139,15 @@ def ioc_command(
     if context.invoked_subcommand is not None:
         return
     apply_log_level(log_level)
+    if graylog_endpoint is not None:
+        from fastcs_ethercat.graylog import send_to_graylog
+
+        send_to_graylog(
+            str(log_level or logging.getLevelName(logging.getLogger().level)),
+            graylog_endpoint,
+            graylog_static_fields,
+            graylog_env_fields,
+        )
     if config is None:
         raise UserError(
             "give the IOC configuration with --config FILE "
@@ -137,7 +173,13 @@ def ioc_command(
         entries, warnings = app.list_pvs(settings)
         log_at_most(log, logging.WARNING, warnings, WARNINGS_SHOWN, "warnings")
         sys.stdout.write(
-            pv_list_text(entries, list_format, settings.prefix, settings.poll_rate_hz)
+            pv_list_text(
+                entries,
+                list_format,
+                settings.prefix,
+                settings.poll_rate_hz,
+                settings.archiver.policy(),
+            )
         )
         return
     if list_format is not PvListFormat.TEXT:

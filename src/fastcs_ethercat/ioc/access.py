@@ -203,7 +203,11 @@ class AccessSecurity(Transport):
             acf = read_only_acf(acf, self._scratch)
             group_of = _read_only_group_of
         if acf is not None:
-            load_access_security(acf)
+            from fastcs_ethercat.ioc.audit import trapwrite_acf
+
+            if self._scratch is None:
+                self._scratch = Path(tempfile.mkdtemp(prefix="fastcs-ethercat-acf-"))
+            load_access_security(trapwrite_acf(acf, self._scratch))  # audited
         if group_of is None:
             return
         for root in controller_apis:
@@ -219,8 +223,8 @@ class AccessSecurity(Transport):
     async def serve(self) -> None:
         """Nothing to serve: EPICS enforces the rules from iocInit on.
 
-        Once the CA transport, listed before, has run iocInit, the generated
-        read-only ACF has been read and can go.
+        Once the CA transport, listed before, has run iocInit, the ACF
+        written for it (TRAPWRITE added: `ioc.audit`) has been read and can go.
         """
         from fastcs_ethercat.ioc.fastcs_adapter import ca_initialised
 

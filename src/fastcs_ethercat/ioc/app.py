@@ -23,6 +23,7 @@ from fastcs_ethercat.ioc.config import IocConfig
 from fastcs_ethercat.ioc.controllers.root import RootController
 from fastcs_ethercat.ioc.controllers.tree import PvEntry
 from fastcs_ethercat.ioc.launch import LaunchOptions, run
+from fastcs_ethercat.ioc.process_stats import deviocstats_aliases
 from fastcs_ethercat.ioc.pvlists import write_pv_lists
 from fastcs_ethercat.terminals.loader import load_terminals
 from fastcs_ethercat.terminals.registry import TerminalRegistry
@@ -72,9 +73,14 @@ def serve(
         idle = ca_still_initialising if config.transports.ca else lambda: True
         await root.prepare(idle)
 
+    if config.audit_puts and config.transports.ca:
+        from fastcs_ethercat.ioc.audit import install_put_audit
+
+        install_put_audit()
     options = LaunchOptions(
         ca=config.transports.ca,
         pva=config.transports.pva,
+        ca_aliases=deviocstats_aliases(config.prefix),
         access_security_file=config.access_security_file,
         read_only=config.read_only,
     )
@@ -97,7 +103,11 @@ def write_lists(root: RootController, config: IocConfig) -> None:
     assert config.pv_lists_dir is not None
     try:
         written = write_pv_lists(
-            config.pv_lists_dir, root.pvs(), config.prefix, config.poll_rate_hz
+            config.pv_lists_dir,
+            root.pvs(),
+            config.prefix,
+            config.poll_rate_hz,
+            config.archiver.policy(),
         )
     except OSError as error:
         logger.warning(

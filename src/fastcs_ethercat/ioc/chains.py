@@ -3,8 +3,9 @@ the last chain each target showed.
 
 One format for three uses: `fastcs-ethercat chain dump` writes a live rack as
 a chain file that `sim --chain` plays offline; the IOC keeps the last chain it
-discovered per target (`$XDG_CACHE_HOME/fastcs-ethercat/chains/`) and boots
-from it, or from a configured `chain:` file, while the PLC does not answer.
+discovered per target (`$FASTCS_ETHERCAT_RUNTIME_DIR/chains/` if set, as in
+the image, else `$XDG_CACHE_HOME/fastcs-ethercat/chains/`) and boots from it, or from
+a configured `chain:` file, while the PLC does not answer.
 
 What a chain holds is what the master and the live symbol table say: masters
 (name, NetId), slaves in bus order with their TwinCAT names and identities
@@ -23,9 +24,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
 
 from fastcs_ethercat.ads.ethercat import AlState
-from fastcs_ethercat.cache_dir import cache_dir
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.ioc.plan import MasterPlan, SystemPlan, TerminalPlan
+from fastcs_ethercat.runtime import state_dir
 from fastcs_ethercat.terminals.yaml_io import dump_yaml
 from fastcs_ethercat.terminals.yaml_style import HexInt
 
@@ -120,7 +121,7 @@ def write_chain(plan: SystemPlan, source: str, path: Path) -> Chain:
 
 def cache_path(target: str) -> Path:
     """Where the last chain of `target` (host[:port]) is kept."""
-    return cache_dir(CACHE_KIND) / f"{_UNSAFE.sub('_', target)}.yaml"
+    return state_dir(CACHE_KIND) / f"{_UNSAFE.sub('_', target)}.yaml"
 
 
 def remember(plan: SystemPlan, target: str) -> None:

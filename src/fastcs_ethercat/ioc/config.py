@@ -38,6 +38,7 @@ from fastcs_ethercat.bounded import (
 )
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.ioc.naming import check_alias, check_prefix
+from fastcs_ethercat.ioc.pvlists import ArchiverPolicy
 from fastcs_ethercat.shipped import BUILTIN_TERMINALS_DIR
 from fastcs_ethercat.terminals.yaml_io import parse_yaml
 
@@ -104,6 +105,32 @@ class RouteConfig(_Strict):
         )
         lines = text.splitlines()
         return SecretStr(lines[0] if lines else "")
+
+
+class ArchiverConfig(_Strict):
+    """What the archiver list (`pv_lists_dir`, `--list-pvs --format archiver`)
+    holds beyond the values, states and texts every site archives."""
+
+    raw: bool = Field(
+        default=False, description="Also the raw counts beside each scaled value."
+    )
+    readbacks: bool = Field(
+        default=False,
+        description="Also each output's _RBV readback (its setpoint always).",
+    )
+    include: list[str] = Field(
+        default_factory=lambda: ["*"],
+        description="Globs over the PV names below the prefix "
+        "(`ETH1:RIO1:MOD5:*`): only these are archived...",
+    )
+    exclude: list[str] = Field(
+        default_factory=list, description="...except these (globs, as include)."
+    )
+
+    def policy(self) -> ArchiverPolicy:
+        return ArchiverPolicy(
+            self.raw, self.readbacks, tuple(self.include), tuple(self.exclude)
+        )
 
 
 class TransportsConfig(_Strict):
@@ -194,7 +221,9 @@ class IocConfig(_Strict):
         description="A chain file (the simulator's format, e.g. from "
         "`fastcs-ethercat chain dump`; relative to this file) to serve from "
         "while the target does not answer at start; without it, the chain this "
-        "target showed last (kept under $XDG_CACHE_HOME/fastcs-ethercat/chains). "
+        "target showed last (kept under $FASTCS_ETHERCAT_RUNTIME_DIR/chains, in "
+        "the image /epics/runtime/chains, else under "
+        "$XDG_CACHE_HOME/fastcs-ethercat/chains). "
         "`ioc --list-pvs` lists it without contacting the target.",
     )
     pv_lists_dir: Path | None = Field(
@@ -203,10 +232,20 @@ class IocConfig(_Strict):
         "(`archiver.json`) and the autosave request file (`autosave.req`) of the "
         "PVs served (relative to this file); none when unset.",
     )
+    archiver: ArchiverConfig = Field(
+        default=ArchiverConfig(),
+        description="Which PVs the archiver list holds (policies by kind: "
+        "docs/how-to/deploy.md).",
+    )
     screens_dir: Path | None = Field(
         default=None,
         description="Where to write Phoebus .bob screens of the chain (relative "
         "to this file; in the image /epics/opi); none when unset.",
+    )
+    audit_puts: bool = Field(
+        default=True,
+        description="Log every put through the EPICS database (CA, and PVA if "
+        "served by QSRV) once on stdout: client user@host, PV.FIELD, old -> new.",
     )
     read_only: bool = Field(
         default=False,

@@ -21,6 +21,23 @@ from typing import Final
 STATM: Final = Path("/proc/self/statm")
 """Linux: the process's pages; the second field is its resident set."""
 MIB: Final = 1024 * 1024
+DEVIOCSTATS_NAMES: Final = {
+    "UptimeText": "UPTIME",
+    "Heartbeat": "HEARTBEAT",
+    "IocCpuLoad": "IOC_CPU_LOAD",
+    "MemUsedBytes": "MEM_USED",
+    "StartCount": "START_CNT",
+}
+"""The root's PVs with devIocStats' meaning -> devIocStats' names, served as
+CA aliases (PVA has no aliases: there they keep the PascalCase names)."""
+
+
+def deviocstats_aliases(prefix: str) -> dict[str, str]:
+    """FastCS's CA aliases (full PV -> alias) of `DEVIOCSTATS_NAMES`."""
+    return {
+        f"{prefix}:{ours}": f"{prefix}:{theirs}"
+        for ours, theirs in DEVIOCSTATS_NAMES.items()
+    }
 
 
 @dataclass(frozen=True)
@@ -32,6 +49,21 @@ class ProcessSample:
     """Of one core since the previous reading (100 % = one core busy)."""
     memory_mib: float
     """Resident set now (Linux), else the peak resident set."""
+
+    @property
+    def cpu_percent_of_all(self) -> float:
+        """Of every core this process may run on (devIocStats' IOC_CPU_LOAD)."""
+        return self.cpu_percent / usable_cores()
+
+    @property
+    def memory_bytes(self) -> float:
+        """`memory_mib` in bytes (devIocStats' MEM_USED)."""
+        return self.memory_mib * MIB
+
+    @property
+    def uptime_text(self) -> str:
+        """devIocStats' UPTIME: `3 days, 04:05:06`."""
+        return uptime_text(self.uptime_s)
 
 
 @dataclass
@@ -59,6 +91,22 @@ class ProcessStats:
     def start_text(self) -> str:
         """The start time as operators read it: `2026-12-01 16:02:50`."""
         return time.strftime("%Y-%m-%d %H:%M:%S", time.localtime(self.started))
+
+
+def uptime_text(seconds: float) -> str:
+    """`seconds` as devIocStats writes its UPTIME: `D days, HH:MM:SS`."""
+    minutes, secs = divmod(int(seconds), 60)
+    hours, minutes = divmod(minutes, 60)
+    days, hours = divmod(hours, 24)
+    return f"{days} days, {hours:02d}:{minutes:02d}:{secs:02d}"
+
+
+def usable_cores() -> int:
+    """The cores this process may run on (its affinity, else the machine's)."""
+    try:
+        return max(len(os.sched_getaffinity(0)), 1)
+    except (AttributeError, OSError):
+        return max(os.cpu_count() or 1, 1)
 
 
 def resident_mib() -> float:

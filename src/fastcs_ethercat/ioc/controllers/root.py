@@ -49,6 +49,7 @@ from fastcs_ethercat.ioc.controllers.tree import (
 from fastcs_ethercat.ioc.datatypes import AlarmBool, ExactFloat, alarm_enum
 from fastcs_ethercat.ioc.deadband import Deadbands
 from fastcs_ethercat.ioc.health import COMM, Health
+from fastcs_ethercat.ioc.heartbeat import Heartbeat, count_start
 from fastcs_ethercat.ioc.naming import (
     MAX_PV_LENGTH,
     PvNames,
@@ -57,7 +58,7 @@ from fastcs_ethercat.ioc.naming import (
     plan_pv_names,
 )
 from fastcs_ethercat.ioc.plan import MasterPlan, SystemPlan, TerminalPlan
-from fastcs_ethercat.ioc.process_stats import ProcessStats
+from fastcs_ethercat.ioc.process_stats import DEVIOCSTATS_NAMES, ProcessStats
 from fastcs_ethercat.ioc.publish import Publisher
 from fastcs_ethercat.ioc.reconnect import Reconnection
 from fastcs_ethercat.ioc.supervisor import LinkState
@@ -78,8 +79,10 @@ PROCESS_LEAVES: Final = (
     "CpuLoad",
     "MemoryUsed",
     "PollOverruns",
+    *DEVIOCSTATS_NAMES,
 )
-"""The IOC process's health (what devIocStats gives a C IOC)."""
+"""The IOC process's health (what devIocStats gives a C IOC; the last ones
+with devIocStats' meaning, served on CA under its names too)."""
 LINK_SEVERITIES: Final = {
     LinkState.CONNECTED: 0,
     LinkState.RESYNCING: 1,
@@ -167,6 +170,9 @@ class RootController(Controller):
         self.unserved = 0
         self.rates = RateTracker()
         self.process = ProcessStats()
+        self.heartbeat: Heartbeat | None = None
+        """Made when the IOC serves (not for `--list-pvs`)."""
+        self.start_count = 0
         self._plan: SystemPlan | None = None
         self._names: PvNames | None = None
         self._reconnection: Reconnection | None = None
@@ -372,6 +378,8 @@ class RootController(Controller):
             " (INVALID until the target answers)" if plan.offline_from else "",
         )
         self.health.publisher.start()
+        self.heartbeat = Heartbeat()
+        self.start_count = count_start()
         coe = [a for t in self.terminals() for a in t.coe_attributes]
         self.health.mark_invalid(coe, COE_READ, Status.UDF, "not read yet")
         if plan.offline_from:
@@ -405,9 +413,16 @@ class RootController(Controller):
         if self._reconnection is None:
             return
         try:
+            await self._beat()
             await self._post_stats()
         except Exception:  # a scan must never raise
             logger.debug("cannot post the statistics", exc_info=True)
+
+    async def _beat(self) -> None:
+        """The heartbeat first: it must not wait on the figures below."""
+        if self.heartbeat is not None:
+            await post(self.attrs["Heartbeat"], self.heartbeat.beat())
+        await post(self.attrs["StartCount"], self.start_count)
 
     async def _post_stats(self) -> None:
         stats = [s for master in self.masters for s in master.poll_stats()]
@@ -456,6 +471,9 @@ class RootController(Controller):
         await post(a["Uptime"], sample.uptime_s)
         await post(a["CpuLoad"], sample.cpu_percent)
         await post(a["MemoryUsed"], sample.memory_mib)
+        await post(a["UptimeText"], sample.uptime_text)
+        await post(a["IocCpuLoad"], sample.cpu_percent_of_all)
+        await post(a["MemUsedBytes"], sample.memory_bytes)
         await post(a["PollOverruns"], min(sum(s.overruns for s in stats), 2**31 - 1))
 
 
@@ -528,6 +546,11 @@ def _root_attributes(
         "PollOverruns": AttrR(
             Int(), description="Poll cycles longer than their period"
         ),
+        "Heartbeat": AttrR(Int(), description="Counts the 1 s health scans"),
+        "UptimeText": AttrR(String(), description="Uptime as D days, HH:MM:SS"),
+        "IocCpuLoad": _figure("%", 1, "IOC CPU, % of all its cores"),
+        "MemUsedBytes": _figure("byte", 0, "IOC resident memory"),
+        "StartCount": AttrR(Int(), description="IOC starts (runtime folder)"),
     }
 
 

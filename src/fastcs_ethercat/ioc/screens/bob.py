@@ -26,9 +26,13 @@ WIDGET_TYPES: Final = {
     "led": "2.0.0",
     "textentry": "3.0.0",
     "textupdate": "2.0.0",
+    "xyplot": "3.0.0",
 }
 """Every widget type written here, with the version Phoebus writes for it."""
 DISPLAY_VERSION: Final = "2.0.0"
+STRING_FORMAT: Final = "6"
+"""`FormatOption.STRING` of a text widget's `format`: a character array (an
+EPICS long string) shown as its text, not as the numbers of its bytes."""
 
 
 @dataclass(frozen=True)
@@ -74,12 +78,42 @@ def label(
     return widget
 
 
-def text_update(box: Box, pv: str) -> ElementTree.Element:
-    return _pv_widget("textupdate", box, pv)
+def text_update(box: Box, pv: str, *, string: bool = False) -> ElementTree.Element:
+    """The value of `pv` (with the PV's units); `string`: shown as text."""
+    return _text_widget("textupdate", box, pv, string)
 
 
-def text_entry(box: Box, pv: str) -> ElementTree.Element:
-    return _pv_widget("textentry", box, pv)
+def text_entry(box: Box, pv: str, *, string: bool = False) -> ElementTree.Element:
+    return _text_widget("textentry", box, pv, string)
+
+
+def xy_plot(
+    box: Box,
+    pv: str,
+    title: str,
+    units: str = "",
+    limits: tuple[float, float] | None = None,
+) -> ElementTree.Element:
+    """The samples of an array PV against their index; the Y axis titled
+    with its units and fixed to `limits` (the value's range) if given."""
+    widget = _widget("xyplot", box, pv)
+    _add(widget, "title", title)
+    _add(widget, "show_legend", "false")
+    x_axis = _add(widget, "x_axis")
+    _add(x_axis, "title", "Sample")
+    _add(x_axis, "autoscale", "true")
+    y_axis = _add(_add(widget, "y_axes"), "y_axis")
+    _add(y_axis, "title", units or "Value")
+    _add(y_axis, "autoscale", "false" if limits else "true")
+    if limits:
+        _add(y_axis, "minimum", f"{limits[0]:g}")
+        _add(y_axis, "maximum", f"{limits[1]:g}")
+    trace = _add(_add(widget, "traces"), "trace")
+    _add(trace, "name", title)
+    _add(trace, "x_pv", "")
+    _add(trace, "y_pv", pv)
+    _add(trace, "y_axis", "0")
+    return widget
 
 
 def combo(box: Box, pv: str) -> ElementTree.Element:
@@ -170,6 +204,13 @@ def _widget(kind: str, box: Box, name: str) -> ElementTree.Element:
     _add(widget, "name", name)
     for key in ("x", "y", "width", "height"):
         _add(widget, key, str(getattr(box, key)))
+    return widget
+
+
+def _text_widget(kind: str, box: Box, pv: str, string: bool) -> ElementTree.Element:
+    widget = _pv_widget(kind, box, pv)
+    if string:
+        _add(widget, "format", STRING_FORMAT)
     return widget
 
 

@@ -23,7 +23,7 @@ from typing import Any
 
 from fastcs.attributes import Attribute, AttrR, AttrW
 from fastcs.controllers import BaseController
-from fastcs.datatypes import Bool, Enum
+from fastcs.datatypes import Bool, Enum, String, Waveform
 
 from fastcs_ethercat.ioc.attributes import CoeRef
 from fastcs_ethercat.ioc.controllers.master import MasterController
@@ -178,13 +178,16 @@ def _rows(controller: BaseController, pv: PvName) -> Iterator[Row]:
     for name, attribute in controller.attributes.items():
         if isinstance(attribute, BaseController):
             continue
+        units, limits = _units_and_limits(attribute.datatype)
         yield Value(
             name,
             pv([*controller.path, name]),
             _show(attribute),
             write=isinstance(attribute, AttrW),
             read=isinstance(attribute, AttrR),
-            tooltip=attribute.description or "",
+            tooltip=_tooltip(attribute.description or "", units, limits),
+            units=units,
+            limits=limits,
         )
     for name in controller.command_methods:
         yield Command(name, pv([*controller.path, name]))
@@ -196,8 +199,31 @@ def _show(attribute: Attribute[Any, Any]) -> Show:
             return Show.BOOL
         case Enum():
             return Show.ENUM
+        case String():
+            return Show.STRING
+        case Waveform():
+            return Show.PLOT
         case _:
             return Show.TEXT
+
+
+def _units_and_limits(datatype: Any) -> tuple[str, tuple[float, float] | None]:
+    """A number's units and range (a waveform's: its samples' datatype has
+    none here, so its plot scales itself)."""
+    units = getattr(datatype, "units", None) or ""
+    low, high = getattr(datatype, "min", None), getattr(datatype, "max", None)
+    if low is None or high is None:
+        return units, None
+    return units, (float(low), float(high))
+
+
+def _tooltip(description: str, units: str, limits: tuple[float, float] | None) -> str:
+    """The description, then the units and range an operator enters within."""
+    extra = f"{limits[0]:g} to {limits[1]:g}" if limits else ""
+    extra = " ".join(part for part in (extra, units) if part)
+    if not extra:
+        return description
+    return f"{description} ({extra})" if description else extra
 
 
 def _is_coe(part: BaseController) -> bool:

@@ -31,14 +31,20 @@ GROUP_TITLE: Final = 24
 MAX_COLUMN_HEIGHT: Final = 820
 HEADER_HEIGHT: Final = 76
 BUTTON_WIDTH: Final = 110
+PLOT_ROWS: Final = 6
+"""Rows a plot takes (the others take one)."""
 
 
 class Show(Enum):
     """How a value is shown (and set, if it is a setpoint)."""
 
     TEXT = auto()
+    STRING = auto()
+    """A character array (an EPICS long string): shown and entered as text."""
     BOOL = auto()
     ENUM = auto()
+    PLOT = auto()
+    """An array (an oversampled channel): a plot of its samples."""
 
 
 @dataclass(frozen=True)
@@ -52,10 +58,17 @@ class Value:
     write: bool = False
     read: bool = True
     tooltip: str = ""
+    units: str = ""
+    limits: tuple[float, float] | None = None
+    """The value's range, where it has one (a plot's Y axis)."""
 
     @property
     def widgets(self) -> int:
         return 1 + self.write + self.read
+
+    @property
+    def rows(self) -> int:
+        return PLOT_ROWS if self.show is Show.PLOT and self.read else 1
 
 
 @dataclass(frozen=True)
@@ -193,7 +206,7 @@ def _display(
     x = y = GAP
     right = bottom = 0
     for section in sections:
-        height = GROUP_TITLE + len(section.rows) * ROW_HEIGHT + 2 * GAP
+        height = GROUP_TITLE + _row_count(section.rows) * ROW_HEIGHT + 2 * GAP
         if y > GAP and y + height > MAX_COLUMN_HEIGHT:
             x, y = x + COLUMN_WIDTH + GAP, GAP
         box = bob.Box(x, HEADER_HEIGHT + y, COLUMN_WIDTH, height)
@@ -208,10 +221,15 @@ def _display(
     return bob.display(title, width, max(bottom, HEADER_HEIGHT) + GAP, head + widgets)
 
 
+def _row_count(rows: Sequence[Row]) -> int:
+    return sum(row.rows if isinstance(row, Value) else 1 for row in rows)
+
+
 def _rows(rows: Sequence[Row]) -> Iterator[ElementTree.Element]:
-    for index, row in enumerate(rows):
-        y = GAP + index * ROW_HEIGHT
+    y = GAP
+    for row in rows:
         yield from _row(row, y, ROW_HEIGHT - 4)
+        y += (row.rows if isinstance(row, Value) else 1) * ROW_HEIGHT
 
 
 def _row(row: Row, y: int, height: int) -> Iterator[ElementTree.Element]:
@@ -231,7 +249,8 @@ def _row(row: Row, y: int, height: int) -> Iterator[ElementTree.Element]:
             yield bob.write_button(first, row.label, row.pv)
         case Device():
             yield bob.label(bob.Box(GAP, y, 90, height), row.label, row.tooltip)
-            yield bob.text_update(bob.Box(GAP * 2 + 90, y, 130, height), row.type_pv)
+            type_box = bob.Box(GAP * 2 + 90, y, 130, height)
+            yield bob.text_update(type_box, row.type_pv, string=True)
             yield bob.severity_led(
                 bob.Box(GAP * 3 + 220, y, height, height), row.state_pv
             )
@@ -247,7 +266,11 @@ def _row(row: Row, y: int, height: int) -> Iterator[ElementTree.Element]:
 def _reader(box: bob.Box, value: Value) -> ElementTree.Element:
     if value.show is Show.BOOL:
         return bob.led(bob.Box(box.x, box.y, box.height, box.height), value.pv)
-    return bob.text_update(box, value.pv)
+    if value.show is Show.PLOT:
+        height = PLOT_ROWS * ROW_HEIGHT - 4
+        plot = bob.Box(box.x, box.y, COLUMN_WIDTH - box.x - 2 * GAP, height)
+        return bob.xy_plot(plot, value.pv, value.label, value.units, value.limits)
+    return bob.text_update(box, value.pv, string=value.show is Show.STRING)
 
 
 def _writer(box: bob.Box, value: Value) -> ElementTree.Element:
@@ -255,4 +278,4 @@ def _writer(box: bob.Box, value: Value) -> ElementTree.Element:
         return bob.checkbox(box, value.pv)
     if value.show is Show.ENUM:
         return bob.combo(box, value.pv)
-    return bob.text_entry(box, value.pv)
+    return bob.text_entry(box, value.pv, string=value.show is Show.STRING)
