@@ -12,9 +12,10 @@ Reasons that a fresh value disproves (`FRESH`: the read failed, the target
 was unreachable) go by themselves when the poller hands on a new value;
 the others (a terminal's state, a chain change) only by `mark_ok`.
 
-An attribute may have followers (`follow`): attributes that show a value
-made from each of its values (a scaled value's raw count and engineering
-value come from one read) and share its every alarm.
+An attribute may have followers (`follow`, kept by `ioc.followers`):
+attributes that show a value made from each of its values (a scaled value's
+raw count and engineering value come from one read) and share its every
+alarm.
 
 An output's setpoint PVs can also have a problem of their own, which its
 readback does not share: a write that did not reach the PLC, one whose
@@ -27,7 +28,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
-from collections.abc import Awaitable, Callable, Iterable, Iterator
+from collections.abc import Awaitable, Callable, Iterable
 from dataclasses import dataclass
 from typing import Any, Final
 
@@ -36,6 +37,7 @@ from fastcs.attributes import Attribute, AttrR
 from fastcs_ethercat.ioc import alarms
 from fastcs_ethercat.ioc.alarms import NO_ALARM, AlarmState, Severity, Status
 from fastcs_ethercat.ioc.fastcs_adapter import Parts
+from fastcs_ethercat.ioc.followers import Convert, Followers
 from fastcs_ethercat.ioc.publish import Failure, Published, Publisher
 
 logger = logging.getLogger(__name__)
@@ -46,10 +48,6 @@ READ: Final = "read"
 """The point's sum-read item failed."""
 FRESH: Final = frozenset({COMM, READ})
 """Reasons a freshly read value proves wrong."""
-
-
-Convert = Callable[[Any], Any]
-"""A leader's value -> its follower's value."""
 
 
 @dataclass(frozen=True)
@@ -75,7 +73,7 @@ class Health:
         self._reasons: dict[int, dict[str, Reason]] = {}
         self._attributes: dict[int, Attribute[Any, Any]] = {}
         self._held: dict[int, tuple[Any, float | None]] = {}
-        self._followers: dict[int, list[tuple[AttrR[Any, Any], Convert]]] = {}
+        self.followers = Followers()
         self._setpoint: dict[int, Reason] = {}
         """Problems of setpoint PVs alone (ioc.setpoints)."""
         self._watches: dict[int, ValueWatch] = {}
@@ -89,16 +87,7 @@ class Health:
     ) -> None:
         """`follower` gets `convert(value)` of every value posted for
         `leader`, at its time, and every alarm reason `leader` gets."""
-        self._followers.setdefault(id(leader), []).append((follower, convert))
-
-    def _with_followers(
-        self, attributes: Iterable[Attribute[Any, Any]]
-    ) -> Iterator[Attribute[Any, Any]]:
-        followers = self._followers
-        for attribute in attributes:
-            yield attribute
-            for follower, _ in followers.get(id(attribute), ()):
-                yield follower
+        self.followers.add(leader, follower, convert)
 
     def is_invalid(self, attribute: Attribute[Any, Any]) -> bool:
         return bool(self._reasons.get(id(attribute)))
@@ -119,7 +108,7 @@ class Health:
     ) -> None:
         """Put `attributes` into INVALID alarm for `reason` (idempotent)."""
         entry = Reason(status, message)
-        for attribute in self._with_followers(attributes):
+        for attribute in self.followers.with_followers(attributes):
             key = id(attribute)
             reasons = self._reasons.setdefault(key, {})
             self._attributes[key] = attribute
@@ -132,7 +121,7 @@ class Health:
         self, attributes: Iterable[Attribute[Any, Any]], reason: str
     ) -> None:
         """Drop `reason`; an attribute with no reason left is valid again."""
-        for attribute in list(self._with_followers(attributes)):
+        for attribute in list(self.followers.with_followers(attributes)):
             await self._drop(attribute, {reason})
 
     async def post(
@@ -147,10 +136,8 @@ class Health:
             await self.publisher.publish(attribute, value, stamp)
             if self._watches:
                 await self._watched(attribute, value)
-        followers = self._followers.get(key)
-        if followers is not None:
-            for follower, convert in followers:
-                await self.post(follower, convert(value), stamp)
+        for follower, convert in self.followers.of(attribute):
+            await self.post(follower, convert(value), stamp)
 
     async def post_batch(
         self, values: list[tuple[AttrR[Any, Any], Any]], stamp: float
@@ -158,8 +145,8 @@ class Health:
         """Fresh values of one poll cycle read at `stamp`, as `post` for each
         (followers included); the ones not in alarm published together."""
         failures: list[Failure] = []
-        if self._followers:
-            values = self._and_followers(values, failures)
+        if self.followers:
+            values = self.followers.expand(values, failures)
         reasons = self._reasons
         if reasons:
             held = [(a, v) for a, v in values if id(a) in reasons]
@@ -176,37 +163,6 @@ class Health:
                 if id(attribute) in self._watches and id(attribute) not in failed:
                     await self._watched(attribute, value)
         return published._replace(failures=failures + published.failures)
-
-    def _and_followers(
-        self, values: list[tuple[AttrR[Any, Any], Any]], failures: list[Failure]
-    ) -> list[tuple[AttrR[Any, Any], Any]]:
-        """`values`, each followed by its followers' values (theirs too)."""
-        followers = self._followers
-        expanded: list[tuple[AttrR[Any, Any], Any]] = []
-        for attribute, value in values:
-            expanded.append((attribute, value))
-            led = followers.get(id(attribute))
-            if led is not None:
-                self._add_followers(led, value, expanded, failures)
-        return expanded
-
-    def _add_followers(
-        self,
-        led: list[tuple[AttrR[Any, Any], Convert]],
-        value: Any,
-        expanded: list[tuple[AttrR[Any, Any], Any]],
-        failures: list[Failure],
-    ) -> None:
-        for follower, convert in led:
-            try:
-                converted = convert(value)
-            except Exception as error:  # one value must not stop the others
-                failures.append((follower, error))
-                continue
-            expanded.append((follower, converted))
-            theirs = self._followers.get(id(follower))
-            if theirs is not None:
-                self._add_followers(theirs, converted, expanded, failures)
 
     async def _hold(
         self, attribute: AttrR[Any, Any], value: Any, stamp: float | None
