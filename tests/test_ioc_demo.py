@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import asyncio
 import getpass
-import queue
 import re
 import subprocess
 import sys

@@ -34,8 +34,8 @@ from fastcs_ethercat.ioc.boot import PlanSource
 from fastcs_ethercat.ioc.chains import remember
 from fastcs_ethercat.ioc.config import IocConfig
 from fastcs_ethercat.ioc.connection import Connection
+from fastcs_ethercat.ioc.controllers.diagnostics import update_if_changed
 from fastcs_ethercat.ioc.controllers.master import MasterController
-from fastcs_ethercat.ioc.controllers.post import post
 from fastcs_ethercat.ioc.controllers.terminal import COE_READ, TerminalController
 from fastcs_ethercat.ioc.controllers.tree import (
     PvEntry,
@@ -403,7 +403,7 @@ class RootController(Controller):
             await self.health.post(a["Connected"], state == "CONNECTED")
             await self.health.post(a["ConnectionState"], state)
             if error:
-                await post(a["LastError"], error[:200])
+                await update_if_changed(a["LastError"], error[:200])
         except Exception:  # never stop the caller (the supervisor)
             logger.debug("cannot show the link state", exc_info=True)
 
@@ -421,8 +421,8 @@ class RootController(Controller):
     async def _beat(self) -> None:
         """The heartbeat first: it must not wait on the figures below."""
         if self.heartbeat is not None:
-            await post(self.attrs["Heartbeat"], self.heartbeat.beat())
-        await post(self.attrs["StartCount"], self.start_count)
+            await update_if_changed(self.attrs["Heartbeat"], self.heartbeat.beat())
+        await update_if_changed(self.attrs["StartCount"], self.start_count)
 
     async def _post_stats(self) -> None:
         stats = [s for master in self.masters for s in master.poll_stats()]
@@ -441,40 +441,46 @@ class RootController(Controller):
         if not connected or not last_error:
             last_error = link.last_error
         a = self.attrs
-        await post(a["PvCount"], self.pv_count)
-        await post(a["Unserved"], self.unserved)
+        await update_if_changed(a["PvCount"], self.pv_count)
+        await update_if_changed(a["Unserved"], self.unserved)
         await self.health.post(
             a["Connected"],
             connected and bool(stats) and all(s.cycles > 0 for s in stats),
         )
-        await post(
+        await update_if_changed(
             a["PollCycleTime"],
             1000.0 * max((s.last_cycle_s for s in stats), default=0.0),
         )
-        await post(a["PollRate"], self.rates.cycles_per_second)
-        await post(a["AdsRequestRate"], self.rates.requests_per_second)
-        await post(a["PostRate"], self.rates.posts_per_second)
+        await update_if_changed(a["PollRate"], self.rates.cycles_per_second)
+        await update_if_changed(a["AdsRequestRate"], self.rates.requests_per_second)
+        await update_if_changed(a["PostRate"], self.rates.posts_per_second)
         errors_total = sum(s.errors + s.item_errors for s in stats)
-        await post(a["PollErrors"], min(errors_total, 2**31 - 1))
-        await post(a["LastError"], last_error[:200])
+        await update_if_changed(a["PollErrors"], min(errors_total, 2**31 - 1))
+        await update_if_changed(a["LastError"], last_error[:200])
         await self.health.post(a["ConnectionState"], str(link.state))
-        await post(a["Reconnects"], min(link.reconnects, 2**31 - 1))
-        await post(a["Resyncs"], min(link.resyncs, 2**31 - 1))
-        await post(a["LastRecovery"], link.last_recovery_s)
-        await post(a["ChainChanges"], self.reconnection.chain_changes[:200])
-        await post(a["InvalidPvs"], min(self.health.invalid_count, 2**31 - 1))
+        await update_if_changed(a["Reconnects"], min(link.reconnects, 2**31 - 1))
+        await update_if_changed(a["Resyncs"], min(link.resyncs, 2**31 - 1))
+        await update_if_changed(a["LastRecovery"], link.last_recovery_s)
+        await update_if_changed(
+            a["ChainChanges"], self.reconnection.chain_changes[:200]
+        )
+        await update_if_changed(
+            a["InvalidPvs"], min(self.health.invalid_count, 2**31 - 1)
+        )
         live = self.reconnection.live
-        await post(a["SymbolVersion"], live.symbol_version)
-        await post(a["DeviceName"], live.device_name)
-        await post(a["DeviceVersion"], live.device_version)
+        await update_if_changed(a["SymbolVersion"], live.symbol_version)
+        await update_if_changed(a["DeviceName"], live.device_name)
+        await update_if_changed(a["DeviceVersion"], live.device_version)
         sample = self.process.sample()
-        await post(a["Uptime"], sample.uptime_s)
-        await post(a["CpuLoad"], sample.cpu_percent)
-        await post(a["MemoryUsed"], sample.memory_mib)
-        await post(a["UptimeText"], sample.uptime_text)
-        await post(a["IocCpuLoad"], sample.cpu_percent_of_all)
-        await post(a["MemUsedBytes"], sample.memory_bytes)
-        await post(a["PollOverruns"], min(sum(s.overruns for s in stats), 2**31 - 1))
+        await update_if_changed(a["Uptime"], sample.uptime_s)
+        await update_if_changed(a["CpuLoad"], sample.cpu_percent)
+        await update_if_changed(a["MemoryUsed"], sample.memory_mib)
+        await update_if_changed(a["UptimeText"], sample.uptime_text)
+        await update_if_changed(a["IocCpuLoad"], sample.cpu_percent_of_all)
+        await update_if_changed(a["MemUsedBytes"], sample.memory_bytes)
+        await update_if_changed(
+            a["PollOverruns"], min(sum(s.overruns for s in stats), 2**31 - 1)
+        )
 
 
 def fold_by_terminal(warnings: Sequence[str], terminals: Collection[str]) -> list[str]:
