@@ -244,7 +244,7 @@ def test_a_put_into_a_stall_is_decided_by_its_read_back(rig: Rig, landed: bool) 
     value without an alarm where the write landed, INVALID/WRITE where the
     PLC does not hold it (set back during the stall).
 
-    caput takes a while to start: the stall begins 50 ms before the put
+    caput takes a while to start: the stall begins ~0.3 s before the put
     reaches the PLC as the put before it took; an attempt whose put came
     too early (answered) or too late (refused: the target already lost) is
     tried again."""
@@ -262,7 +262,7 @@ def test_a_put_into_a_stall_is_decided_by_its_read_back(rig: Rig, landed: bool) 
             target=lambda: answers.append(_put_with_callback(rig, ANALOG, "201"))
         )
         put.start()
-        time.sleep(max(0.0, took - 0.05))
+        time.sleep(max(0.0, took - 0.3))  # the put ~0.3 s into the stall
         rig.sim.add_fault("stall", seconds=2)
         arrived = wait_for(lambda: rig.sim.get_symbol(ANALOG_SYMBOL) == 201, 2)
         if arrived and not landed:
