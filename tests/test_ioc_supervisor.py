@@ -7,6 +7,7 @@ import asyncio
 import logging
 import time
 from dataclasses import dataclass, field
+from typing import Any
 
 import pytest
 
@@ -33,6 +34,19 @@ class RecordingLink:
     async def resync(self, why: str) -> int:
         self.calls.append("resync")
         return 7
+
+
+def _frames_flowing(probe: Any, link: RecordingLink) -> Supervisor:
+    """A supervisor of symbol version 7 whose target keeps sending frames
+    (heard now), a probe slow after 0.1 s."""
+    return Supervisor(
+        probe,
+        link,
+        7,
+        probe_timeout_s=TIMEOUT_S,
+        heard_at=time.monotonic,
+        slow_limit_s=0.1,
+    )
 
 
 async def hung_probe() -> Probe:
@@ -85,14 +99,7 @@ async def test_an_answer_ends_the_slow_spell() -> None:
         return Probe(5, 7)
 
     link = RecordingLink()
-    watch = Supervisor(
-        probe,
-        link,
-        7,
-        probe_timeout_s=TIMEOUT_S,
-        heard_at=time.monotonic,
-        slow_limit_s=0.1,
-    )
+    watch = _frames_flowing(probe, link)
     started = time.monotonic()
     while answers:
         await watch.step()
@@ -143,14 +150,7 @@ async def test_the_clients_own_timeout_is_slow_while_frames_come() -> None:
         raise AdsTimeoutError(0x745, "read state", "target")
 
     link = RecordingLink()
-    watch = Supervisor(
-        probe,
-        link,
-        7,
-        probe_timeout_s=TIMEOUT_S,
-        heard_at=time.monotonic,
-        slow_limit_s=0.1,
-    )
+    watch = _frames_flowing(probe, link)
     await watch.step()
     first = list(link.calls)
     started = time.monotonic()
