@@ -2,9 +2,7 @@
 
     python tests/data/publish_ioc.py --prefix P
 
-Serves CA and PVA as the IOC does (FastCS imported through
-`fastcs_adapter.import_ioc_modules`, so PVA read PVs are posted to lazily)
-for one controller with a float, an int with limits, a bool, an enum and a
+Serves CA and PVA as the IOC does for one controller with a float, an int with limits, a bool, an enum and a
 text attribute, all published through `Health` as poll cycles are. Each
 stdin line is a command, answered by one `done <command> <number>` line:
 

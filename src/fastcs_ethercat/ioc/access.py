@@ -226,9 +226,9 @@ class AccessSecurity(Transport):
         Once the CA transport, listed before, has run iocInit, the ACF
         written for it (TRAPWRITE added: `ioc.audit`) has been read and can go.
         """
-        from fastcs_ethercat.ioc.fastcs_adapter import ca_initialised
+        from fastcs_ethercat.ioc.database import initialised
 
-        await ca_initialised()
+        await initialised()
         if self._scratch is not None:
             shutil.rmtree(self._scratch, ignore_errors=True)
             self._scratch = None

@@ -68,10 +68,7 @@ def serve(
             write_screens(root, config.screens_dir, ca=config.transports.ca)
 
     async def prepare() -> None:
-        from fastcs_ethercat.ioc.fastcs_adapter import ca_still_initialising
-
-        idle = ca_still_initialising if config.transports.ca else lambda: True
-        await root.prepare(idle)
+        await root.prepare()
 
     if config.audit_puts and config.transports.ca:
         from fastcs_ethercat.ioc.audit import install_put_audit
@@ -83,6 +80,7 @@ def serve(
         ca_aliases=deviocstats_aliases(config.prefix),
         access_security_file=config.access_security_file,
         read_only=config.read_only,
+        site_databases=config.site_databases(),
     )
     try:
         run(

@@ -17,6 +17,7 @@ from __future__ import annotations
 import json
 import os
 from collections.abc import Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Annotated, Any, Final
 
@@ -146,6 +147,28 @@ class TransportsConfig(_Strict):
         return self
 
 
+@dataclass(frozen=True)
+class SiteDatabase:
+    """A site's `.db` file and its macro substitutions."""
+
+    file: Path
+    macros: Mapping[str, str] = field(default_factory=dict)
+
+    def substitutions(self) -> str:
+        """`A=1,B=2`, as EPICS's dbLoadRecords takes them."""
+        return ",".join(f"{name}={value}" for name, value in self.macros.items())
+
+
+class DatabaseConfig(_Strict):
+    """A site's EPICS database file, loaded after the IOC's own records."""
+
+    file: Path = Field(description="The .db file (relative to this file).")
+    macros: dict[str, str] = Field(
+        default_factory=dict,
+        description="Macro substitutions; P is the IOC's prefix unless set here.",
+    )
+
+
 class TerminalConfig(_Strict):
     """Per-terminal settings, keyed by the terminal's TwinCAT name or path."""
 
@@ -251,6 +274,12 @@ class IocConfig(_Strict):
         default=False,
         description="Serve outputs (RxPDO symbols, CoE objects) read-only.",
     )
+    databases: list[DatabaseConfig] = Field(
+        default_factory=list,
+        description="A site's .db files (calc, calcout, alarm summaries linked "
+        "to the served PVs), loaded after the IOC's records with their macros "
+        "and P=<prefix> (CA served).",
+    )
     access_security_file: Path | None = Field(
         default=None,
         description="EPICS access security (ACF) for CA: who may write outputs "
@@ -295,6 +324,13 @@ class IocConfig(_Strict):
     @property
     def target_port(self) -> int:
         return split_host_port(self.target)[1]
+
+    def site_databases(self) -> list[SiteDatabase]:
+        """The `databases`, each with P set to the prefix unless given."""
+        return [
+            SiteDatabase(item.file, {"P": self.prefix, **item.macros})
+            for item in self.databases
+        ]
 
     def poll_period(self, *terminal_keys: str) -> float:
         """Seconds between polls of a terminal: its own rate if set, else the IOC's."""
@@ -383,6 +419,9 @@ def _resolve_paths(raw: dict[str, Any], base: Path) -> None:
     for key in ("screens_dir", "access_security_file", "chain", "pv_lists_dir"):
         if key in raw:
             raw[key] = resolve(raw[key])
+    for item in raw.get("databases") or ():
+        if isinstance(item, dict) and "file" in item:
+            item["file"] = resolve(item["file"])
     route = raw.get("route")
     if isinstance(route, dict) and "password_file" in route:
         route["password_file"] = resolve(route["password_file"])

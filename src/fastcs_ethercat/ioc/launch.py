@@ -4,35 +4,38 @@ FastCS's own `launch()` builds its controllers from a YAML schema of their
 `__init__`; our tree comes from the live symbol table instead, so this module
 builds the transports itself and runs `FastCS` directly:
 
-- CA: `EpicsCATransport` (softioc records, iocInit in a worker thread while
-  the PVA side builds: `fastcs_adapter.ca_transport`; the callback queue is enlarged
-  before iocInit, because every changed value of every record queues one
-  callback and the EPICS default of 2000 overflows on a large rack),
+- CA: FastCS's `EpicsCATransport` as `ioc.database` makes it (records that
+  behave as EPICS records, the site's databases, iocInit; the callback queue
+  is enlarged before iocInit, because every changed value of every record
+  queues one callback and the EPICS default of 2000 overflows on a large
+  rack),
 - PVA: `EpicsPVATransport` (p4p), which also serves the PVI structure
   `<path>:PVI` of every controller.
 
 softioc can initialise only once per process, so an IOC (and every test of
 one) lives in its own process. `on_built` runs once the tree is built,
 before anything serves (the screens are written there: `ioc.screens`);
-`on_pvs_built` once every CA record and PVA PV exists, while EPICS's iocInit
-sleeps (work done there costs the start nothing); the ready line goes to
-stdout once both transports serve, so a parent process knows when to look
-for PVs (and screens).
+`on_pvs_built` once every CA record and PVA PV exists; the ready line goes
+to stdout once both transports serve, so a parent process knows when to
+look for PVs (and screens).
 """
 
 from __future__ import annotations
 
 import asyncio
-from collections.abc import Awaitable, Callable, Mapping
+from collections.abc import Awaitable, Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Final
+from typing import TYPE_CHECKING, Final
 
 from fastcs.control_system import FastCS
 from fastcs.controllers import Controller, ControllerAPI
 from fastcs.transports import Transport
 
 from fastcs_ethercat.process import ready_line
+
+if TYPE_CHECKING:
+    from fastcs_ethercat.ioc.database import SiteDatabase
 
 DEFAULT_CALLBACK_QUEUE_SIZE: Final = 50_000
 """Entries per EPICS callback queue; the default 2000 overflows ("ring buffer
@@ -49,10 +52,12 @@ class LaunchOptions:
     """Extra CA record names, full PV -> alias (CA only; PVA has no aliases)."""
     callback_queue_size: int = DEFAULT_CALLBACK_QUEUE_SIZE
     access_security_file: Path | None = None
+    """ACF loaded at iocInit; outputs get ASG OUTPUTS, CoE parameters COE."""
     read_only: bool = False
     """Outputs and CoE parameters served read-only: their records in ASG
     READ_ONLY (CA clients see "no write")."""
-    """ACF loaded at iocInit; outputs get ASG OUTPUTS, CoE parameters COE."""
+    site_databases: Sequence[SiteDatabase] = ()
+    """A site's .db files, loaded after the IOC's own records (CA only)."""
 
     def __post_init__(self) -> None:
         if not (self.ca or self.pva):
@@ -63,9 +68,11 @@ def build_transports(options: LaunchOptions) -> list[Transport]:
     """The FastCS transports for `options` (imports softioc only for CA)."""
     transports: list[Transport] = []
     if options.ca:
-        from fastcs_ethercat.ioc.fastcs_adapter import ca_transport
+        from fastcs_ethercat.ioc.database import database_transport
 
-        transports.append(ca_transport(options.ca_aliases))
+        transports.append(
+            database_transport(options.ca_aliases, options.site_databases)
+        )
         if options.access_security_file is not None or options.read_only:
             from fastcs_ethercat.ioc.access import AccessSecurity, access_group_of
 
@@ -77,9 +84,9 @@ def build_transports(options: LaunchOptions) -> list[Transport]:
                 )
             )
     if options.pva:
-        from fastcs_ethercat.ioc.fastcs_adapter import pva_transport
+        from fastcs.transports.epics.pva.transport import EpicsPVATransport
 
-        transports.append(pva_transport())
+        transports.append(EpicsPVATransport())
     return transports
 
 
@@ -103,11 +110,9 @@ def build_fastcs(
     if not root.path:
         root.set_path([prefix])
     if options.ca:
-        from fastcs_ethercat.ioc import fastcs_adapter
+        from fastcs_ethercat.ioc.database import set_callback_queue_size
 
-        fastcs_adapter.set_callback_queue_size(options.callback_queue_size)
-        fastcs_adapter.install_field_memo()  # one record per CA PV: fields once
-        fastcs_adapter.install_quick_db_text()
+        set_callback_queue_size(options.callback_queue_size)
     announce = _Announce(prefix, on_ready, on_built, on_pvs_built)
     transports = [*build_transports(options), announce]
     return FastCS(root, transports, loop)
@@ -131,7 +136,7 @@ def run(
     loop = asyncio.new_event_loop()
     asyncio.set_event_loop(loop)
     try:
-        build_fastcs(
+        fastcs = build_fastcs(
             root,
             prefix,
             options,
@@ -139,9 +144,28 @@ def run(
             on_ready=on_ready,
             on_built=on_built,
             on_pvs_built=on_pvs_built,
-        ).run(interactive=False)
+        )
+        fastcs.run(interactive=False)
     finally:
+        _cancel_left_tasks(loop)
         loop.close()
+    if options.ca:
+        # FastCS logs an exception of a transport's `serve` and returns: the
+        # database's (a site database EPICS cannot load) is raised here
+        from fastcs_ethercat.ioc.database import failure
+
+        if (error := failure()) is not None:
+            raise error
+
+
+def _cancel_left_tasks(loop: asyncio.AbstractEventLoop) -> None:
+    """Cancel what FastCS left running (its scan tasks, when serving stopped
+    early) and let it end, as `asyncio.run` does."""
+    left = asyncio.all_tasks(loop)
+    for task in left:
+        task.cancel()
+    if left:
+        loop.run_until_complete(asyncio.gather(*left, return_exceptions=True))
 
 
 class _Announce(Transport):
@@ -149,10 +173,9 @@ class _Announce(Transport):
     exist and prints the ready line once the real transports serve.
 
     FastCS connects every transport after the root's `initialise()`, then
-    gathers their `serve()` in order: CA starts iocInit in a worker thread
-    (`fastcs_adapter.ca_transport`) and PVA builds its PVs and starts its
-    p4p server in their first step; once iocInit has returned and this last
-    one has yielded a few times, both are up.
+    gathers their `serve()` in order: CA runs iocInit (`ioc.database`) and
+    PVA builds its PVs and starts its p4p server in their first step; once
+    this last one has yielded a few times, both are up.
     """
 
     def __init__(
@@ -175,12 +198,11 @@ class _Announce(Transport):
             self.on_built()
 
     async def serve(self) -> None:
-        from fastcs_ethercat.ioc.fastcs_adapter import ca_initialised, pvs_built
+        from fastcs_ethercat.ioc.database import initialised
 
+        await initialised()
         if self.on_pvs_built is not None:
-            await pvs_built()
             await self.on_pvs_built()
-        await ca_initialised()
         for _ in range(3):
             await asyncio.sleep(0)
         print(ready_line("ioc", prefix=self.prefix), flush=True)  # the one print

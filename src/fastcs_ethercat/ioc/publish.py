@@ -2,10 +2,9 @@
 
 A poll cycle's values were all read by one ADS request, so they all carry
 that request's time, and only values that changed are posted. A cycle's
-values are posted together (`publish_batch`): their CA records are written
-under one lock and none of them waits on another thread. The posting itself
-(`Update(value, timestamp)` straight to the CA record and the PVA PV) is
-`fastcs_adapter`'s until FastCS releases its own `Update`.
+values are posted together (`publish_batch`). The posting itself
+(`Update(value, timestamp)` to the CA record, which EPICS processes, and to
+the PVA PV) is `fastcs_adapter`'s until FastCS releases its own `Update`.
 
 Alarms are not sticky here either: a published value carries its own alarm,
 NO_ALARM unless its datatype makes it an alarm state (a set Error bit: the
@@ -25,7 +24,7 @@ from fastcs_ethercat.collector import freeze_new, settle_garbage_collector
 from fastcs_ethercat.ioc.alarms import state_alarm
 from fastcs_ethercat.ioc.datatypes import severity_table
 from fastcs_ethercat.ioc.deadband import Deadbands
-from fastcs_ethercat.ioc.fastcs_adapter import CycleWrites, Update, ValueRoute
+from fastcs_ethercat.ioc.fastcs_adapter import Update, ValueRoute
 
 FREEZE_AFTER_ROUTES: Final = 100
 """A batch that made this many routes (a first cycle) freezes the heap again."""
@@ -99,52 +98,47 @@ class Publisher:
         values: Iterable[tuple[AttrR[Any, Any], Any]],
         stamp: float | None = None,
     ) -> Published:
-        """Post each new value at `stamp` (now if None), all CA records of
-        the batch under one lock; a value that fails does not stop the
-        others."""
+        """Post each new value at `stamp` (now if None); a value that fails
+        does not stop the others."""
         stamp = stamp or time.time()
         if not self.started:
             return await self._update_each(values)
-        writes = CycleWrites(stamp)
         routes = self._routes
         failures: list[Failure] = []
         waiting: list[tuple[AttrR[Any, Any], Awaitable[None]]] = []
         posted = made = 0
-        try:
-            for attribute, value in values:
-                try:
-                    entry = routes.get(id(attribute))
-                    if entry is None:  # first value: posted even if equal
-                        validated = attribute.datatype.validate(value)
-                        entry = self._prepared.pop(id(attribute), None)
-                        if entry is None:
-                            entry = self._route(attribute)
-                            made += 1
-                        routes[id(attribute)] = entry
-                        route, _, _, _, severity_of = entry
-                    else:
-                        route, validate, equal, band, severity_of = entry
-                        validated = validate(value)
-                        if band:
-                            if abs(validated - attribute.get()) <= band:
-                                self.within_deadband += 1
-                                continue
-                        elif equal(attribute.get(), validated):
+        for attribute, value in values:
+            try:
+                entry = routes.get(id(attribute))
+                if entry is None:  # first value: posted even if equal
+                    validated = attribute.datatype.validate(value)
+                    entry = self._prepared.pop(id(attribute), None)
+                    if entry is None:
+                        entry = self._route(attribute)
+                        made += 1
+                    routes[id(attribute)] = entry
+                    route, _, _, _, severity_of = entry
+                else:
+                    route, validate, equal, band, severity_of = entry
+                    validated = validate(value)
+                    if band:
+                        if abs(validated - attribute.get()) <= band:
+                            self.within_deadband += 1
                             continue
-                    if severity_of is None:
-                        update = Update(validated, stamp)
-                    else:  # a state bit: its alarm goes with it
-                        alarm = state_alarm(severity_of(validated))
-                        update = Update(validated, stamp, *alarm)
-                    pending = route.post(update, writes)
-                except Exception as error:
-                    failures.append((attribute, error))
-                    continue
-                posted += 1
-                if pending is not None:
-                    waiting.append((attribute, pending))
-        finally:
-            writes.flush()
+                    elif equal(attribute.get(), validated):
+                        continue
+                if severity_of is None:
+                    update = Update(validated, stamp)
+                else:  # a state bit: its alarm goes with it
+                    alarm = state_alarm(severity_of(validated))
+                    update = Update(validated, stamp, *alarm)
+                pending = route.post(update)
+            except Exception as error:
+                failures.append((attribute, error))
+                continue
+            posted += 1
+            if pending is not None:
+                waiting.append((attribute, pending))
         if made >= FREEZE_AFTER_ROUTES:
             freeze_new()  # routes live as long as the IOC
         self.posted += posted

@@ -341,18 +341,14 @@ class RootController(Controller):
 
     # -- serving -------------------------------------------------------------------
 
-    async def prepare(self, idle: Callable[[], bool]) -> None:
-        """Every PV exists, none serves yet (EPICS's iocInit sleeps): where
-        each value from the target will go is worked out now, not at its
-        first poll, a slice at a time while `idle()` (what is left is done at
-        the first values, as the IOC must serve as soon as EPICS does).
-        Never raises: what fails here is done at the first value."""
+    async def prepare(self) -> None:
+        """Every PV exists, none serves yet: where each value from the target
+        will go is worked out now, not at its first poll, a slice at a time
+        (the loop keeps its turns). Never raises: what fails here is done at
+        the first value."""
         self.keep_chain(self.plan)
         attributes = self.target_attributes()
         for first in range(0, len(attributes), PREPARED_AT_ONCE):
-            if not idle():
-                logger.debug("routes prepared: %d of %d", first, len(attributes))
-                return
             try:
                 self.health.publisher.prepare(
                     attributes[first : first + PREPARED_AT_ONCE]
@@ -360,7 +356,7 @@ class RootController(Controller):
             except Exception:
                 logger.debug("routes not prepared", exc_info=True)
                 return
-            await asyncio.sleep(0)  # iocInit may have returned meanwhile
+            await asyncio.sleep(0)
 
     def start(self) -> None:
         """The transports serve: poll, supervise, read the CoE values.

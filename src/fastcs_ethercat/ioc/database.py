@@ -1,0 +1,182 @@
+"""The IOC's EPICS database: FastCS's CA records made to behave as an EPICS
+engineer expects, a site's own databases beside them, and iocInit.
+
+FastCS's CA transport makes one softioc record per PV. Before the database
+is loaded, with epicsdbbuilder's public record fields, each in record gets:
+
+- `DISP 0`: softioc disables puts to every field of an in record (DISP 1),
+  so `caput ...:Value.HIHI` was refused; an operator may now set alarm
+  limits, deadbands and DESC (a put to VAL is overwritten by the next
+  processing, as on any input record);
+- `TSE -2`: the record keeps the time softioc's `set()` gives it, the time
+  of the ADS sum read that produced the value;
+- `HOPR`/`LOPR` from the datatype's range (FastCS puts the alarm limits
+  there, which scaled values do not have), so meters and bars have a range.
+
+`serve` does what FastCS's own does (softioc's asyncio dispatcher,
+`builder.LoadDatabase`, `softioc.iocInit`), and loads the site's `.db` files
+(the `databases` config key) between the two, with their macros: their
+records can link to the IOC's (`INPA "...:CH1:Value CP"`) as on any IOC.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import re
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Final
+
+from fastcs.attributes import AttrR, AttrW
+from fastcs.datatypes import Float, Int
+from fastcs.transports.epics import EpicsCAOptions
+from fastcs.transports.epics.ca.transport import EpicsCATransport
+
+from fastcs_ethercat.bounded import read_text_bounded
+from fastcs_ethercat.errors import UserError
+from fastcs_ethercat.ioc.config import SiteDatabase
+from fastcs_ethercat.ioc.fastcs_adapter import RBV_SUFFIX, ca_name
+
+if TYPE_CHECKING:
+    from fastcs.controllers import ControllerAPI
+
+MAX_DATABASE_BYTES: Final = 64 * 1024 * 1024
+"""A site database larger than this is refused (a rack's is ~1 MB)."""
+_STRING: Final = re.compile(r'"(?:[^"\\]|\\.)*"')
+"""A quoted string of a database line."""
+DEVICE_TIME: Final = -2
+"""TSE: the record's time is the one its device support sets."""
+
+
+_initialised: asyncio.Future[None] | None = None
+"""Done once this process's iocInit has returned (softioc inits once)."""
+
+
+@dataclass
+class DatabaseTransport(EpicsCATransport):
+    """FastCS's CA transport, its records with the fields above, the site's
+    databases loaded after them."""
+
+    site_databases: Sequence[SiteDatabase] = ()
+
+    def connect(
+        self, controller_apis: list[ControllerAPI], loop: asyncio.AbstractEventLoop
+    ) -> None:
+        super().connect(controller_apis, loop)
+        for api in controller_apis:
+            for controller_api in api.walk_api():
+                for attribute in controller_api.attributes.values():
+                    if isinstance(attribute, AttrR) and attribute.enabled:
+                        _as_an_input_record(attribute)
+
+    async def serve(self) -> None:
+        """Load the database, then the site's, then iocInit (on the loop, as
+        FastCS does: EPICS's 0.5 s iocInit sleep is part of the start)."""
+        from softioc import builder, softioc
+        from softioc.asyncio_dispatcher import AsyncioDispatcher
+
+        global _initialised
+        loop = asyncio.get_running_loop()
+        _initialised = done = loop.create_future()
+        try:
+            dispatcher = AsyncioDispatcher(loop)
+            builder.LoadDatabase()
+            load_site_databases(self.site_databases)
+            softioc.iocInit(dispatcher, enable_pva=False)
+        except Exception as error:
+            done.set_exception(error)
+            raise
+        done.set_result(None)
+
+    def __repr__(self) -> str:
+        return f"Database{super().__repr__()}"
+
+
+def database_transport(
+    aliases: Mapping[str, str], site_databases: Sequence[SiteDatabase] = ()
+) -> DatabaseTransport:
+    return DatabaseTransport(
+        epicsca=EpicsCAOptions(aliases=dict(aliases)),
+        site_databases=tuple(site_databases),
+    )
+
+
+def _as_an_input_record(attribute: AttrR[Any, Any]) -> None:
+    """Give the in record of `attribute` the fields above (before the
+    database is loaded)."""
+    from epicsdbbuilder import LookupRecord
+
+    name = ca_name(attribute)
+    if isinstance(attribute, AttrW):
+        name += RBV_SUFFIX
+    try:
+        record: Any = LookupRecord(name)
+    except KeyError:  # not made (a name too long for EPICS: FastCS said so)
+        return
+    record.DISP = 0
+    record.TSE = DEVICE_TIME
+    datatype = attribute.datatype
+    ranged = isinstance(datatype, Float | Int)
+    if ranged and datatype.min is not None and datatype.max is not None:
+        record.LOPR = datatype.min
+        record.HOPR = datatype.max
+
+
+def load_site_databases(databases: Iterable[SiteDatabase]) -> None:
+    """Load each site database; a file EPICS cannot load stops the IOC with
+    one line naming it (EPICS's own message is printed above it)."""
+    from softioc import softioc
+
+    for database in databases:
+        check_closed(database.file)
+        try:
+            softioc.dbLoadDatabase(
+                str(database.file), None, database.substitutions() or None
+            )
+        except Exception:
+            raise UserError(
+                "EPICS could not load this database (its message is above)",
+                path=database.file,
+            ) from None
+
+
+def check_closed(path: Path) -> None:
+    """Refuse a database whose braces do not close (strings and comments
+    left out): EPICS 7.0's parser reads past the end of such a file and
+    crashes the process instead of reporting it."""
+    try:
+        text = read_text_bounded(path, MAX_DATABASE_BYTES, what="database file")
+    except OSError as error:
+        raise UserError(f"cannot read it: {error.strerror}", path=path) from None
+    depth = 0
+    for number, line in enumerate(text.splitlines(), 1):
+        code = _STRING.sub("", line).split("#", 1)[0]
+        depth += code.count("{") - code.count("}")
+        if depth < 0:
+            raise UserError("a '}' closes nothing", path=path, where=f"line {number}")
+    if depth:
+        raise UserError("a '{' is never closed", path=path)
+
+
+def set_callback_queue_size(entries: int) -> None:
+    """EPICS callback queue entries (before iocInit): every changed record
+    queues one, and the default 2000 overflows on a large rack."""
+    from softioc.imports import callbackSetQueueSize
+
+    callbackSetQueueSize(entries)
+
+
+def failure() -> BaseException | None:
+    """Why iocInit did not happen (for the launcher: FastCS logs a
+    transport's exception and returns), None if it did or has not run."""
+    if _initialised is None or not _initialised.done():
+        return None
+    return _initialised.exception()
+
+
+async def initialised() -> None:
+    """Once iocInit has returned (at once without a CA transport serving);
+    call from a transport's `serve`, which starts after the CA one's."""
+    if _initialised is not None:
+        await asyncio.shield(_initialised)
