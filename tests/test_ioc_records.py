@@ -217,6 +217,26 @@ def test_adel_governs_archive_events(fields: Rack) -> None:
     assert len(every) == 1 + len(steps), every
 
 
+def test_a_value_carries_its_channels_status_alarm(rack: Rack) -> None:
+    """A forced Error bit turns the channel's value MAJOR (STATE) with it,
+    an Overrange bit MINOR; cleared, the value is back to no alarm."""
+    _settle(rack, 1.0)
+    channel = "Term 22 (EL3104).AI Standard Channel 1.Status."
+    rack.sim.set_symbol(channel + "Error", 1)
+    raised = wait_for(lambda: rack.alarm()[1:] == ["STATE", "MAJOR"], 10)
+    pva = rack.ioc.tool("pvget", "-M", "json", rack.value)
+    rack.sim.set_symbol(channel + "Error", 0)
+    rack.sim.set_symbol(channel + "Overrange", 1)
+    minor = wait_for(lambda: rack.alarm()[1:] == ["STATE", "MINOR"], 10)
+    rack.sim.set_symbol(channel + "Overrange", 0)
+    cleared = wait_for(lambda: len(rack.alarm()) == 1, 10)
+
+    assert raised, rack.alarm()
+    assert re.search(r"alarm:\{severity:2", pva), pva
+    assert minor, rack.alarm()
+    assert cleared, rack.alarm()
+
+
 def test_a_site_calc_record_follows_the_value_by_its_cp_link(rack: Rack) -> None:
     double = rack.ioc.pv("SITE:Double")
 

@@ -259,7 +259,11 @@ class Health:
         self._publish_state(attribute, reason.alarm(), self._parts(attribute))
 
     def _clear(self, attribute: Attribute[Any, Any]) -> None:
-        state = alarms.value_alarm(attribute)  # a set Error bit stays MAJOR
+        # a set Error bit stays MAJOR, and the values of its channel with it
+        if isinstance(attribute, AttrR):
+            state = self.publisher.value_alarm(attribute)
+        else:
+            state = alarms.value_alarm(attribute)
         self._publish_state(attribute, state, self._parts(attribute))
 
     def _publish_state(

@@ -8,8 +8,8 @@ the PVA PV) is `fastcs_adapter`'s until FastCS releases its own `Update`.
 
 Alarms are not sticky here either: a published value carries its own alarm,
 NO_ALARM unless its datatype makes it an alarm state (a set Error bit: the
-severity from the datatype's table, status STATE; see `ioc.alarms`,
-`ioc.health`).
+severity from the datatype's table, status STATE) or its channel's status
+bits are in alarm (`ioc.channel_alarms`); see `ioc.alarms`, `ioc.health`.
 """
 
 from __future__ import annotations
@@ -21,7 +21,9 @@ from typing import Any, Final, NamedTuple
 from fastcs.attributes import AttrR
 
 from fastcs_ethercat.collector import freeze_new, settle_garbage_collector
-from fastcs_ethercat.ioc.alarms import state_alarm
+from fastcs_ethercat.ioc import alarms
+from fastcs_ethercat.ioc.alarms import AlarmState, Severity, state_alarm
+from fastcs_ethercat.ioc.channel_alarms import ChannelAlarms
 from fastcs_ethercat.ioc.datatypes import severity_table
 from fastcs_ethercat.ioc.deadband import Deadbands
 from fastcs_ethercat.ioc.fastcs_adapter import Update, ValueRoute
@@ -46,6 +48,18 @@ none) and its datatype's severity table (None: no alarms): looked up once,
 not per value (FastCS's `datatype` is a property)."""
 
 
+class _Batch:
+    """What one batch has done so far."""
+
+    def __init__(self, stamp: float) -> None:
+        self.stamp = stamp
+        self.posted = 0
+        self.made = 0
+        """Routes made (not prepared ahead)."""
+        self.failures: list[Failure] = []
+        self.waiting: list[tuple[AttrR[Any, Any], Awaitable[None]]] = []
+
+
 class Publisher:
     """Publishes values of attributes the IOC keeps, once the transports serve.
 
@@ -65,6 +79,10 @@ class Publisher:
         self.within_deadband = 0
         """New values not posted: within their deadband of the last posted."""
         self._routes: dict[int, _Route] = {}
+        self.channels = ChannelAlarms()
+        """Which values carry their channel's status bits' alarm."""
+        self._carried: dict[int, int] = {}
+        """A channel value's id -> the channel severity it was last posted with."""
         self._prepared: dict[int, _Route] = {}
         """Routes made ahead (`prepare`), taken at each attribute's first value."""
 
@@ -99,55 +117,100 @@ class Publisher:
         stamp: float | None = None,
     ) -> Published:
         """Post each new value at `stamp` (now if None); a value that fails
-        does not stop the others."""
+        does not stop the others. A channel's values go after its status
+        bits, with the worst of their severities (`ioc.channel_alarms`); a
+        value whose channel's alarm changed is posted again, unchanged."""
         stamp = stamp or time.time()
         if not self.started:
             return await self._update_each(values)
-        routes = self._routes
-        failures: list[Failure] = []
-        waiting: list[tuple[AttrR[Any, Any], Awaitable[None]]] = []
-        posted = made = 0
+        batch = _Batch(stamp)
+        channels = self.channels
+        carrying: list[tuple[AttrR[Any, Any], Any]] = []
+        touched: dict[int, AttrR[Any, Any]] = {}
         for attribute, value in values:
-            try:
-                entry = routes.get(id(attribute))
-                if entry is None:  # first value: posted even if equal
-                    validated = attribute.datatype.validate(value)
-                    entry = self._prepared.pop(id(attribute), None)
-                    if entry is None:
-                        entry = self._route(attribute)
-                        made += 1
-                    routes[id(attribute)] = entry
-                    route, _, _, _, severity_of = entry
-                else:
-                    route, validate, equal, band, severity_of = entry
-                    validated = validate(value)
-                    if band:
-                        if abs(validated - attribute.get()) <= band:
-                            self.within_deadband += 1
-                            continue
-                    elif equal(attribute.get(), validated):
-                        continue
-                if severity_of is None:
-                    update = Update(validated, stamp)
-                else:  # a state bit: its alarm goes with it
-                    alarm = state_alarm(severity_of(validated))
-                    update = Update(validated, stamp, *alarm)
-                pending = route.post(update)
-            except Exception as error:
-                failures.append((attribute, error))
-                continue
-            posted += 1
-            if pending is not None:
-                waiting.append((attribute, pending))
-        if made >= FREEZE_AFTER_ROUTES:
+            if channels.carries(attribute):
+                carrying.append((attribute, value))
+            elif self._post(batch, attribute, value, None):
+                for carrier in channels.values_of(attribute):
+                    touched[id(carrier)] = carrier
+        for attribute, value in carrying:
+            touched.pop(id(attribute), None)
+            self._post(batch, attribute, value, channels.severity(attribute))
+        for attribute in touched.values():  # its value as it was, its alarm not
+            if id(attribute) in self._routes:
+                self._post(
+                    batch, attribute, attribute.get(), channels.severity(attribute)
+                )
+        if batch.made >= FREEZE_AFTER_ROUTES:
             freeze_new()  # routes live as long as the IOC
-        self.posted += posted
-        for attribute, pending in waiting:
+        self.posted += batch.posted
+        for attribute, pending in batch.waiting:
             try:
                 await pending
             except Exception as error:
-                failures.append((attribute, error))
-        return Published(posted, failures)
+                batch.failures.append((attribute, error))
+        return Published(batch.posted, batch.failures)
+
+    def value_alarm(self, attribute: AttrR[Any, Any]) -> AlarmState:
+        """The alarm of the attribute's value by itself and its channel's
+        status bits (what it shows once no other alarm holds it)."""
+        own = alarms.value_alarm(attribute)
+        if not self.channels.carries(attribute):
+            return own
+        carried = self.channels.severity(attribute)
+        self._carried[id(attribute)] = carried
+        if carried > own.severity:
+            return AlarmState(Severity(carried), alarms.VALUE_STATUS)
+        return own
+
+    def _post(
+        self,
+        batch: _Batch,
+        attribute: AttrR[Any, Any],
+        value: Any,
+        carried: int | None,
+    ) -> bool:
+        """Post `value` if new (or its channel's alarm, `carried`, is);
+        whether it was posted."""
+        try:
+            routes = self._routes
+            entry = routes.get(id(attribute))
+            unchanged_alarm = carried is None or carried == self._carried.get(
+                id(attribute), 0
+            )
+            if entry is None:  # first value: posted even if equal
+                validated = attribute.datatype.validate(value)
+                entry = self._prepared.pop(id(attribute), None)
+                if entry is None:
+                    entry = self._route(attribute)
+                    batch.made += 1
+                routes[id(attribute)] = entry
+                route, _, _, _, severity_of = entry
+            else:
+                route, validate, equal, band, severity_of = entry
+                validated = validate(value)
+                if band:
+                    if abs(validated - attribute.get()) <= band and unchanged_alarm:
+                        self.within_deadband += 1
+                        return False
+                elif unchanged_alarm and equal(attribute.get(), validated):
+                    return False
+            severity = severity_of(validated) if severity_of is not None else 0
+            if carried is not None:
+                self._carried[id(attribute)] = carried
+                severity = max(severity, carried)
+            if severity:  # a state, its own or its channel's: its alarm goes with it
+                update = Update(validated, batch.stamp, *state_alarm(severity))
+            else:
+                update = Update(validated, batch.stamp)
+            pending = route.post(update)
+        except Exception as error:
+            batch.failures.append((attribute, error))
+            return False
+        batch.posted += 1
+        if pending is not None:
+            batch.waiting.append((attribute, pending))
+        return True
 
     def _route(self, attribute: AttrR[Any, Any]) -> _Route:
         """What posting the attribute's values needs, looked up once."""

@@ -348,6 +348,10 @@ class RootController(Controller):
         the first value."""
         self.keep_chain(self.plan)
         attributes = self.target_attributes()
+        channel_members = self.health.followers.with_followers(attributes)
+        self.health.publisher.channels.add(
+            a for a in channel_members if isinstance(a, AttrR)
+        )
         for first in range(0, len(attributes), PREPARED_AT_ONCE):
             try:
                 self.health.publisher.prepare(
