@@ -15,6 +15,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from p4p.client.thread import RemoteError
 
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.ioc.access import (
@@ -176,13 +177,21 @@ def test_caput_to_a_default_group_record_still_writes(ioc: IocProcess) -> None:
 
 
 @pytest.mark.e2e
-def test_the_acf_does_not_reach_pva_puts(ioc: IocProcess) -> None:
-    """A limit, pinned: FastCS's p4p server does not consult the ACF."""
+def test_pva_puts_obey_the_acf_as_ca_puts_do(ioc: IocProcess) -> None:
+    """QSRV serves the same records and asks the same access security."""
     with ioc.p4p_context() as context:
-        context.put(ioc.pv("Output"), 8)
-        changed = wait_for(lambda: int(context.get(ioc.pv("Output_RBV"))) == 8)  # pyright: ignore[reportArgumentType]
+        with pytest.raises(RemoteError):
+            context.put(ioc.pv("Output"), 8, wait=True)
+        with pytest.raises(RemoteError):
+            context.put(ioc.pv("CoeGain"), 8, wait=True)
+        context.put(ioc.pv("Setting"), 12, wait=True)
+        setting = wait_for(
+            lambda: int(context.get(ioc.pv("Setting_RBV"))) == 12  # pyright: ignore[reportArgumentType]
+        )
+        output = int(context.get(ioc.pv("Output_RBV")))  # pyright: ignore[reportArgumentType]
 
-    assert changed
+    assert setting
+    assert output != 8
 
 
 @pytest.mark.e2e

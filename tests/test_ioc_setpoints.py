@@ -1,6 +1,8 @@
-"""What an output's setpoint shows, in-process: FastCS's PVA PVs of an
-`AttrRW` (no CA, no target), `Health` and `Setpoints` driving them; and the
-supervisor's resync on request (a master whose handles went invalid)."""
+"""What an output's setpoint shows, in-process: an `AttrRW` (no records, no
+target), `Health` and `Setpoints` deciding its readback's and setpoint's
+value and alarm (the records that show them are the end-to-end tests');
+and the supervisor's resync on request (a master whose handles went
+invalid)."""
 
 from __future__ import annotations
 
@@ -10,40 +12,48 @@ from typing import Any
 
 from fastcs.attributes import AttrRW
 from fastcs.datatypes import Int
-from fastcs.transports.epics.pva._pv_handlers import (
-    make_shared_read_pv,
-    make_shared_write_pv,
-)
 
 from fastcs_ethercat.ads.constants import AdsState
-from fastcs_ethercat.ioc.alarms import Status
+from fastcs_ethercat.ioc.alarms import AlarmState, Severity, Status, value_alarm
 from fastcs_ethercat.ioc.health import COMM, Health
 from fastcs_ethercat.ioc.setpoints import WAITING, Setpoints
 from fastcs_ethercat.ioc.supervisor import Probe, Supervisor
 
 
 class Output:
-    """An output attribute with its PVA readback and setpoint PVs."""
+    """An output attribute, and what its readback and setpoint show as
+    `Health` decides it: the values through FastCS's own callbacks, the
+    alarms from `Health`."""
 
-    def __init__(self) -> None:
+    def __init__(self, health: Health) -> None:
+        self.health = health
         self.attribute = AttrRW(Int(), initial_value=0)
-        self.readback = make_shared_read_pv(self.attribute)
-        self.setpoint = make_shared_write_pv(self.attribute)
+        self.setpoint = self.attribute.datatype.initial_value
+        self.attribute.add_sync_setpoint_callback(self._synced)
 
-    def shown(self) -> tuple[tuple[Any, int, str], tuple[Any, int, str]]:
-        """(value, severity, message) of the readback, then of the setpoint."""
+    async def _synced(self, value: Any) -> None:
+        self.setpoint = value
 
-        def of(pv: Any) -> tuple[Any, int, str]:
-            current = pv.current()
-            fields = getattr(current, "raw", current).todict()
-            severity = fields["alarm"]["severity"]
-            return (
-                fields["value"],
-                severity,
-                fields["alarm"]["message"] if severity else "",
-            )
+    def shown(self) -> tuple[tuple[Any, int], tuple[Any, int, str]]:
+        """(value, severity) of the readback, then (value, severity,
+        "STATUS: message") of the setpoint."""
+        attribute, health = self.attribute, self.health
+        severity = value_alarm(attribute).severity
+        if health.is_invalid(attribute):
+            severity = Severity.INVALID
+        setpoint = health.setpoint_alarm(attribute)
+        return (
+            (attribute.get(), int(severity)),
+            (self.setpoint, int(setpoint.severity), _text(setpoint)),
+        )
 
-        return of(self.readback), of(self.setpoint)
+
+def _text(state: AlarmState) -> str:
+    """What a PVA client read as the message: the status, then the text."""
+    if not state.severity:
+        return ""
+    name = state.status.name
+    return f"{name}: {state.message}" if state.message else name
 
 
 async def _settled() -> None:
@@ -53,7 +63,8 @@ async def _settled() -> None:
 
 
 async def test_a_failed_write_alarms_the_setpoint_only_until_a_write_succeeds() -> None:
-    output, health = Output(), Health()
+    health = Health()
+    output = Output(health)
     setpoints = Setpoints(health)
     await health.post(output.attribute, 5)
 
@@ -65,8 +76,8 @@ async def test_a_failed_write_alarms_the_setpoint_only_until_a_write_succeeds() 
     await setpoints.written(output.attribute, 7)
     await _settled()
 
-    assert failed == ((5, 0, ""), (9, 3, "WRITE: not written: refused"))
-    assert moved == ((6, 0, ""), (9, 3, "WRITE: not written: refused"))
+    assert failed == ((5, 0), (9, 3, "WRITE: not written: refused"))
+    assert moved == ((6, 0), (9, 3, "WRITE: not written: refused"))
     assert output.shown()[1] == (7, 0, "")
 
 
@@ -74,7 +85,8 @@ async def test_the_setpoints_own_problem_outlasts_the_readbacks() -> None:
     """The target goes (COMM on both), a write is refused meanwhile (WRITE on
     the setpoint), the target returns (the readback is valid again): the
     setpoint keeps its own alarm; once that goes it shows no alarm."""
-    output, health = Output(), Health()
+    health = Health()
+    output = Output(health)
     setpoints = Setpoints(health)
     setpoints.follow([output.attribute])
     await health.post(output.attribute, 0)
@@ -87,15 +99,17 @@ async def test_the_setpoints_own_problem_outlasts_the_readbacks() -> None:
     health.setpoint_fine(output.attribute)
     health.show_setpoint(output.attribute)
 
-    assert lost[0][1:] == lost[1][1:] == (3, "COMM: lost")
-    assert back == ((1, 0, ""), (3, 3, "WRITE: not written: target away"))
+    assert lost[0][1] == 3
+    assert lost[1][1:] == (3, "COMM: lost")
+    assert back == ((1, 0), (3, 3, "WRITE: not written: target away"))
     assert output.shown()[1] == (3, 0, "")
 
 
 async def test_a_setpoint_waits_for_and_takes_the_plcs_value() -> None:
     """After start, a reconnect or an online change: UDF until the first
     value, which the setpoint then shows; also one held while in alarm."""
-    output, health = Output(), Health()
+    health = Health()
+    output = Output(health)
     setpoints = Setpoints(health)
     setpoints.follow([output.attribute])
     await _settled()
@@ -114,20 +128,21 @@ async def test_a_setpoint_waits_for_and_takes_the_plcs_value() -> None:
     assert waiting == (0, 3, f"UDF: {WAITING}")
     assert taken == (42, 0, "")
     assert held == (42, 3, f"UDF: {WAITING}")
-    assert output.shown() == ((43, 0, ""), (43, 0, ""))
+    assert output.shown() == ((43, 0), (43, 0, ""))
 
 
 async def test_a_setpoint_takes_the_plcs_value_from_a_poll_cycles_batch() -> None:
     """Polled values come as one batch per cycle (`Health.post_batch`): the
     setpoint waiting for the PLC's value takes it from there too."""
-    output, health = Output(), Health()
+    health = Health()
+    output = Output(health)
     Setpoints(health).follow([output.attribute])
     await _settled()
     published = await health.post_batch([(output.attribute, 42)], time.time())
     await _settled()
 
     assert published.failures == []
-    assert output.shown() == ((42, 0, ""), (42, 0, ""))
+    assert output.shown() == ((42, 0), (42, 0, ""))
 
 
 async def test_a_resync_does_not_turn_a_refused_write_into_waiting() -> None:
@@ -135,7 +150,8 @@ async def test_a_resync_does_not_turn_a_refused_write_into_waiting() -> None:
     the put's answer reaches the client (seen in the online-change test): the
     setpoint keeps INVALID/WRITE (the client must see the put fail, not UDF
     nor the first readback's value without an alarm) until a write succeeds."""
-    output, health = Output(), Health()
+    health = Health()
+    output = Output(health)
     setpoints = Setpoints(health)
     setpoints.follow([output.attribute])
     await health.post(output.attribute, 5)
@@ -162,7 +178,8 @@ async def test_a_resync_while_a_refused_write_is_being_shown_keeps_it_refused() 
     answer. The setpoint must stay INVALID/WRITE with the value asked for,
     not take the readback's value without an alarm (`caput -c` read it as a
     put that was done)."""
-    output, health = Output(), Health()
+    health = Health()
+    output = Output(health)
     setpoints = Setpoints(health)
     setpoints.follow([output.attribute])
     await health.post(output.attribute, 5)
@@ -183,7 +200,8 @@ async def test_a_readback_being_shown_does_not_undo_a_refused_write() -> None:
     """The other order: the setpoint is taking the first readback after a
     resync (awaiting FastCS's setpoint callbacks) when a write is refused:
     the refusal is what the setpoint ends up showing."""
-    output, health = Output(), Health()
+    health = Health()
+    output = Output(health)
     setpoints = Setpoints(health)
     setpoints.follow([output.attribute])
     taking = asyncio.create_task(health.post(output.attribute, 5))
@@ -198,7 +216,8 @@ async def test_a_readback_being_shown_does_not_undo_a_refused_write() -> None:
 async def test_an_unknown_outcome_waits_for_the_write_paths_read_back() -> None:
     """Neither a poll's readback nor a resync's `follow` ends an unknown
     outcome: the write path reads the symbol back and decides."""
-    output, health = Output(), Health()
+    health = Health()
+    output = Output(health)
     setpoints = Setpoints(health)
     setpoints.follow([output.attribute])  # polling started
     await setpoints.unknown(output.attribute, 8, "outcome unknown: no answer")

@@ -25,6 +25,7 @@ import enum
 import sys
 import threading
 import time
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
@@ -41,13 +42,27 @@ from fastcs_ethercat.ioc.access import (
     AccessSecurity,
 )
 from fastcs_ethercat.ioc.alarms import (
+    AlarmState,
     Severity,
     Status,
-    clear_alarm,
+    publish_alarm,
     set_alarm,
-    set_alarms,
+    value_alarm,
 )
 from fastcs_ethercat.ioc.launch import LaunchOptions, build_transports
+
+
+def clear_alarm(attribute: Attribute[Any, Any]) -> int:
+    """Back to the alarm of the attribute's value; records reached."""
+    return publish_alarm(attribute, value_alarm(attribute))
+
+
+def set_alarms(
+    attributes: Iterable[Attribute[Any, Any]], severity: Severity, status: Status
+) -> int:
+    """`set_alarm` for every attribute; records reached."""
+    state = AlarmState(severity, status)
+    return sum(publish_alarm(attribute, state) for attribute in attributes)
 
 
 def _access_security_active() -> bool:

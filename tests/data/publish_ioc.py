@@ -2,9 +2,10 @@
 
     python tests/data/publish_ioc.py --prefix P
 
-Serves CA and PVA as the IOC does for one controller with a float, an int with limits, a bool, an enum and a
-text attribute, all published through `Health` as poll cycles are. Each
-stdin line is a command, answered by one `done <command> <number>` line:
+Serves CA and PVA as the IOC does for one controller with a float, an int
+with limits, a bool, an enum and a text attribute, all published through
+`Health` as poll cycles are. Each stdin line is a command, answered by one
+`done <command> <number>` line:
 
     publish STAMP NAME=VALUE ...   one batch read at STAMP (time.time()
                                    seconds); number: values posted

@@ -1,12 +1,12 @@
-"""EPICS access security (an ACF file) for the IOC's Channel Access records.
+"""EPICS access security (an ACF file) for the IOC's records, on CA and PVA.
 
 A site restricts who may write by an ACF file: `load_access_security(path)`
 checks it and hands it to EPICS, which reads it at iocInit. Records belong to
 the access security group (ASG) DEFAULT unless their ASG field names another;
-`assign_access_group` sets that field on the CA out records FastCS made for
-given attributes, which must happen after the CA transport connected (the
-records exist) and before it serves (the database is loaded): in between runs
-`AccessSecurity.connect`, a transport to list after the CA one.
+`assign_access_group` sets that field on the out records FastCS made for
+given attributes, which must happen after the database transport connected
+(the records exist) and before it serves (the database is loaded): in
+between runs `AccessSecurity.connect`, a transport to list after that one.
 
 Two ways to use it (see ioc/access-example.acf):
 - without ASGs on records, an ACF whose DEFAULT group allows WRITE only to
@@ -19,8 +19,8 @@ write rules to the site's ACF (or to an open one) and puts the records of every
 output and CoE parameter in it (served as plain read records then), so CA
 clients see each as read-only ("read, no write") and cannot write it.
 
-Limit: the ACF governs Channel Access only. FastCS serves PVA through p4p,
-not through the IOC database, so EPICS access security never sees PVA puts.
+PV Access is served from the same records by QSRV, which asks EPICS access
+security for every put as the CA server does: one ACF governs both.
 """
 
 from __future__ import annotations

@@ -1,9 +1,10 @@
-"""Put an attribute's PVs into alarm, or out of it, on CA and PVA at once.
+"""Put an attribute's PVs into alarm, or out of it (its records: CA and PVA
+serve the same ones).
 
 FastCS 0.14.4 has no alarm API for attributes: `fastcs_adapter` reaches the
-records and PVs its transports made and republishes the same value with a
-new alarm (CA in records processed with their held value, CA out records
-without processing, PVA with only `alarm` and `timeStamp` posted).
+records its transport made and gives them a new alarm with the same value
+(in records processed with their held value, out records without
+processing).
 
 Alarms are not sticky, as in an EPICS record: the next value published for
 the attribute carries its own alarm again (`value_alarm`: NO_ALARM, or the
@@ -14,7 +15,6 @@ transports serve; before that, whatever is not built yet is skipped.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
 from dataclasses import dataclass
 from enum import IntEnum
 from typing import Any, Final
@@ -64,19 +64,11 @@ class Status(IntEnum):
 
 @dataclass(frozen=True)
 class AlarmState:
-    """One alarm: severity, CA status and a text for PVA clients."""
+    """One alarm: severity, status and a text for the log."""
 
     severity: Severity
     status: Status
     message: str = ""
-
-    def pva_message(self) -> str:
-        """The CA status name (PVA has no such detail), then the text."""
-        if self.status is Status.NO_ALARM:
-            return self.message
-        return (
-            f"{self.status.name}: {self.message}" if self.message else self.status.name
-        )
 
 
 NO_ALARM: Final = AlarmState(Severity.NO_ALARM, Status.NO_ALARM)
@@ -112,28 +104,11 @@ def set_alarm(
     return publish_alarm(attribute, AlarmState(severity, status, message), parts)
 
 
-def clear_alarm(attribute: Attribute[Any, Any], parts: Parts = Parts.ALL) -> int:
-    """Return `attribute`'s PVs (of `parts`) to the alarm of their value
-    (`value_alarm`), value unchanged; PVs reached."""
-    return publish_alarm(attribute, value_alarm(attribute), parts)
-
-
-def set_alarms(
-    attributes: Iterable[Attribute[Any, Any]],
-    severity: Severity,
-    status: Status,
-    message: str = "",
-) -> int:
-    """`set_alarm` for many attributes (a whole target or terminal)."""
-    state = AlarmState(severity, status, message)
-    return sum(publish_alarm(attribute, state) for attribute in attributes)
-
-
 def publish_alarm(
     attribute: Attribute[Any, Any], state: AlarmState, parts: Parts = Parts.ALL
 ) -> int:
-    """Publish `state` on the CA records and PVA PVs of `attribute` (of
-    `parts`: its readback, its setpoint or both)."""
+    """Publish `state` on the records of `attribute` (of `parts`: its
+    readback, its setpoint or both)."""
     return fastcs_adapter.endpoints_of(attribute).publish_alarm(
-        int(state.severity), int(state.status), state.pva_message(), parts
+        int(state.severity), int(state.status), parts
     )

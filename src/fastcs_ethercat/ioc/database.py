@@ -1,5 +1,7 @@
 """The IOC's EPICS database: FastCS's CA records made to behave as an EPICS
-engineer expects, a site's own databases beside them, and iocInit.
+engineer expects, a site's own databases beside them, and iocInit, which
+serves them on Channel Access (softioc's RSRV) and PV Access (QSRV, the
+pvxs server softioc loads with `enable_pva`).
 
 FastCS's CA transport makes one softioc record per PV. Before the database
 is loaded, with epicsdbbuilder's public record fields, each in record gets:
@@ -13,15 +15,22 @@ is loaded, with epicsdbbuilder's public record fields, each in record gets:
 - `HOPR`/`LOPR` from the datatype's range (FastCS puts the alarm limits
   there, which scaled values do not have), so meters and bars have a range.
 
-`serve` does what FastCS's own does (softioc's asyncio dispatcher,
-`builder.LoadDatabase`, `softioc.iocInit`), and loads the site's `.db` files
-(the `databases` config key) between the two, with their macros: their
-records can link to the IOC's (`INPA "...:CH1:Value CP"`) as on any IOC.
+Every record also carries its PVI entry (`ioc.pvi`). `serve` does what
+FastCS's own does (softioc's asyncio dispatcher, `builder.LoadDatabase`,
+`softioc.iocInit`), and loads the site's `.db` files (the `databases` config
+key) between the two, with their macros: their records can link to the
+IOC's (`INPA "...:CH1:Value CP"`) as on any IOC.
+
+One database serves both protocols, so a PV is the same record on CA and
+PVA: its alarm limits, deadbands, access security and put audit apply to
+both. Without CA, EPICS is told to start no CA server
+(`EPICS_IOC_IGNORE_SERVERS=rsrv`); without PVA, softioc loads no QSRV.
 """
 
 from __future__ import annotations
 
 import asyncio
+import os
 import re
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
@@ -37,6 +46,7 @@ from fastcs_ethercat.bounded import read_text_bounded
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.ioc.config import SiteDatabase
 from fastcs_ethercat.ioc.fastcs_adapter import RBV_SUFFIX, ca_name
+from fastcs_ethercat.ioc.pvi import add_pvi_groups
 
 if TYPE_CHECKING:
     from fastcs.controllers import ControllerAPI
@@ -45,6 +55,8 @@ MAX_DATABASE_BYTES: Final = 64 * 1024 * 1024
 """A site database larger than this is refused (a rack's is ~1 MB)."""
 _STRING: Final = re.compile(r'"(?:[^"\\]|\\.)*"')
 """A quoted string of a database line."""
+IGNORE_SERVERS: Final = "EPICS_IOC_IGNORE_SERVERS"
+"""EPICS base: the servers iocInit does not start (`rsrv`: Channel Access)."""
 DEVICE_TIME: Final = -2
 """TSE: the record's time is the one its device support sets."""
 
@@ -59,11 +71,17 @@ class DatabaseTransport(EpicsCATransport):
     databases loaded after them."""
 
     site_databases: Sequence[SiteDatabase] = ()
+    ca: bool = True
+    """Serve Channel Access (RSRV)."""
+    pva: bool = True
+    """Serve PV Access (QSRV)."""
 
     def connect(
         self, controller_apis: list[ControllerAPI], loop: asyncio.AbstractEventLoop
     ) -> None:
         super().connect(controller_apis, loop)
+        if self.pva:
+            add_pvi_groups(controller_apis)
         for api in controller_apis:
             for controller_api in api.walk_api():
                 for attribute in controller_api.attributes.values():
@@ -83,7 +101,9 @@ class DatabaseTransport(EpicsCATransport):
             dispatcher = AsyncioDispatcher(loop)
             builder.LoadDatabase()
             load_site_databases(self.site_databases)
-            softioc.iocInit(dispatcher, enable_pva=False)
+            if not self.ca:
+                os.environ[IGNORE_SERVERS] = "rsrv"
+            softioc.iocInit(dispatcher, enable_pva=self.pva)
         except Exception as error:
             done.set_exception(error)
             raise
@@ -94,11 +114,17 @@ class DatabaseTransport(EpicsCATransport):
 
 
 def database_transport(
-    aliases: Mapping[str, str], site_databases: Sequence[SiteDatabase] = ()
+    aliases: Mapping[str, str],
+    site_databases: Sequence[SiteDatabase] = (),
+    *,
+    ca: bool = True,
+    pva: bool = True,
 ) -> DatabaseTransport:
     return DatabaseTransport(
         epicsca=EpicsCAOptions(aliases=dict(aliases)),
         site_databases=tuple(site_databases),
+        ca=ca,
+        pva=pva,
     )
 
 

@@ -8,18 +8,13 @@ why, and what upstream change retires it.
   carry that request's time and their channel's alarm. `ValueRoute.post`
   sets what `update()` sets (`AttrR._value`, `_on_update_events`, an
   `AttrRW`'s first setpoint sync through `_setpoint_initialised` and
-  `_call_sync_setpoint_callbacks`) and hands the value to the CA in record
+  `_call_sync_setpoint_callbacks`) and hands the value to the in record
   through softioc's public `set(value, severity, alarm, timestamp)`, so EPICS
-  record support processes it (alarm limits, deadbands, links), and to the
-  PVA read PV. Retired by FastCS's `Update` (on its main branch): then
-  `attribute.update(Update(...))`.
-- **Where an attribute is served on PVA.** FastCS keeps its PVA SharedPVs
-  only in the closures of the callbacks its PVA transport registers on the
-  attribute (`_on_update_callbacks`, `_sync_setpoint_callbacks`;
-  `make_shared_read_pv.<locals>.set_readback`, cell `shared_pv`), so
-  `endpoints_of` reads them from there. Retired by serving PVA from the
-  database records (softioc's QSRV) or by FastCS handing out its PVs. CA
-  records are found by name with softioc's public `LookupRecord`.
+  record support processes it (alarm limits, deadbands, links) and CA and
+  PVA (QSRV) serve the result. The CA transport's own on-update callback
+  (recognised in `_on_update_callbacks` by its module and name) is left
+  out; any other is called. Retired by FastCS's `Update` (on its main
+  branch): then `attribute.update(Update(...))`.
 - **CA out-record alarms.** softioc stages an out record's alarm only for
   its next processing, and processing an out record writes to the PLC:
   `_set_out_record_alarm` does what processing would (NSEV/NSTA through
@@ -48,11 +43,9 @@ import math
 import sys
 import time
 import types
-from collections.abc import Awaitable, Callable, Iterable
+from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Final, NamedTuple
-
-import numpy as np
 
 from fastcs_ethercat.errors import UserError
 
@@ -83,47 +76,34 @@ class Update(NamedTuple):
     message: str = ""
 
 
-def pva_time(stamp: float) -> dict[str, int]:
-    """The PVA timeStamp fields of a time.time() value."""
-    seconds = int(stamp)
-    return {"secondsPastEpoch": seconds, "nanoseconds": int((stamp - seconds) * 1e9)}
-
-
 # -- where an attribute is served --------------------------------------------
 
 
 @dataclass(frozen=True)
-class _Closure:
-    """One FastCS callback whose closure holds a PVA SharedPV."""
+class _Callback:
+    """One of FastCS's CA transport callbacks, recognised by its name."""
 
     module: str
     outer: str
     inner: str
-    cell: str
 
     @property
     def qualname(self) -> str:
         return f"{self.outer}.<locals>.{self.inner}"
 
+    def made(self, callback: Callable[..., Any]) -> bool:
+        """Whether FastCS made `callback` here."""
+        return (
+            getattr(callback, "__module__", None) == self.module
+            and getattr(callback, "__qualname__", None) == self.qualname
+        )
+
 
 _CA_MODULE: Final = "fastcs.transports.epics.ca.ioc"
-_PVA_MODULE: Final = "fastcs.transports.epics.pva._pv_handlers"
-CA_READ: Final = _Closure(
-    _CA_MODULE, "_create_and_link_read_pv", "async_record_set", "record"
-)
-"""The CA transport's on-update callback (recognised, its record found by name)."""
-PVA_READ: Final = _Closure(
-    _PVA_MODULE, "make_shared_read_pv", "set_readback", "shared_pv"
-)
-PVA_WRITE: Final = _Closure(
-    _PVA_MODULE, "make_shared_write_pv", "set_setpoint", "shared_pv"
-)
-CA_WRITE: Final = _Closure(
-    _CA_MODULE, "_create_and_link_write_pv", "set_setpoint_without_process", "record"
-)
-"""The CA transport's sync-setpoint callback (shape check only)."""
+CA_READ: Final = _Callback(_CA_MODULE, "_create_and_link_read_pv", "async_record_set")
+"""The CA transport's on-update callback: `ValueRoute` sets the record
+itself (with time and alarm), so this one is not called."""
 RBV_SUFFIX: Final = "_RBV"
-_NO_ALARM: Final = {"severity": 0, "status": 0, "message": ""}
 _ON_UPDATE: Final = "_ProcessDeviceSupportOut__on_update"
 """Where a softioc out record keeps its on-update callback."""
 _WATCHED: Final = "_fastcs_ethercat_watched"
@@ -131,21 +111,17 @@ _WATCHED: Final = "_fastcs_ethercat_watched"
 
 
 class Parts(enum.IntFlag):
-    """Which PVs of an attribute an alarm goes to."""
+    """Which records of an attribute an alarm goes to."""
 
-    CA_IN = enum.auto()
-    PVA_READ = enum.auto()
-    CA_OUT = enum.auto()
-    PVA_WRITE = enum.auto()
-    READBACK = CA_IN | PVA_READ
-    """What the PLC holds: the in record (`_RBV` of an output) and its PVA PV."""
-    SETPOINT = CA_OUT | PVA_WRITE
-    """What was asked for: an output's out record and PVA setpoint PV."""
+    READBACK = enum.auto()
+    """What the PLC holds: the in record (`_RBV` of an output)."""
+    SETPOINT = enum.auto()
+    """What was asked for: an output's out record."""
     ALL = READBACK | SETPOINT
 
 
 def ca_name(attribute: Attribute[Any, Any]) -> str:
-    """The CA PV FastCS makes for `attribute` (an `AttrRW`'s setpoint)."""
+    """The PV FastCS makes for `attribute` (an `AttrRW`'s setpoint)."""
     from fastcs.transports.epics.util import pv_prefix_from_path
     from fastcs.util import snake_to_pascal
 
@@ -153,7 +129,7 @@ def ca_name(attribute: Attribute[Any, Any]) -> str:
 
 
 def _ca_names(attribute: Attribute[Any, Any], *, reads: bool) -> list[str]:
-    """CA records of `attribute`: the out record, and the in record if `reads`."""
+    """Records of `attribute`: the out record, and the in record if `reads`."""
     from fastcs.attributes import AttrR, AttrW
 
     name = ca_name(attribute) if attribute.path else ""
@@ -166,9 +142,9 @@ def _ca_names(attribute: Attribute[Any, Any], *, reads: bool) -> list[str]:
 
 
 def database_records(attribute: Attribute[Any, Any], *, reads: bool) -> list[Any]:
-    """The CA database records (epicsdbbuilder) of `attribute`'s out record,
-    and in record if `reads`, to set fields on between the CA transport's
-    connect and iocInit."""
+    """The database records (epicsdbbuilder) of `attribute`'s out record, and
+    in record if `reads`, to set fields on between the transport's connect
+    and iocInit."""
     from epicsdbbuilder import LookupRecord
 
     found = []
@@ -182,7 +158,7 @@ def database_records(attribute: Attribute[Any, Any], *, reads: bool) -> list[Any
 
 def _ca_record(name: str) -> Any:
     """softioc's record `name` (its device support), None without one."""
-    if "softioc.device_core" not in sys.modules:  # CA not served
+    if "softioc.device_core" not in sys.modules:  # no database yet
         return None
     from softioc.device_core import LookupRecord
 
@@ -194,89 +170,49 @@ def _ca_record(name: str) -> Any:
 
 @dataclass(frozen=True)
 class Endpoints:
-    """The CA records and PVA PVs serving one attribute (None: not made).
+    """The records serving one attribute (None: not made), on CA and PVA.
 
-    `ca_in`/`ca_out` are softioc device supports, `pva_read`/`pva_write`
-    p4p SharedPVs; `others` every other on-update callback (anyone's), which
-    gets each value as from `update()`.
+    `ca_in`/`ca_out` are softioc device supports; `others` every on-update
+    callback but the CA transport's own (anyone's), which gets each value
+    as from `update()`.
     """
 
     attribute: Attribute[Any, Any]
     ca_in: Any = None
     ca_out: Any = None
-    pva_read: Any = None
-    pva_write: Any = None
     others: tuple[Callable[[Any], Any], ...] = ()
 
     def __bool__(self) -> bool:
-        return any(
-            x is not None
-            for x in (self.ca_in, self.ca_out, self.pva_read, self.pva_write)
-        )
+        return self.ca_in is not None or self.ca_out is not None
 
     def publish_alarm(
-        self, severity: int, status: int, message: str, parts: Parts = Parts.ALL
+        self, severity: int, status: int, parts: Parts = Parts.ALL
     ) -> int:
-        """Give the PVs of `parts` this alarm, value unchanged; how many were
-        reached."""
+        """Give the records of `parts` this alarm, value unchanged; how many
+        were reached."""
         reached = 0
-        if self.ca_in is not None and Parts.CA_IN in parts:
+        if self.ca_in is not None and Parts.READBACK in parts:
             # the time too: the record is on device time
             self.ca_in.set_alarm(severity, status, timestamp=time.time())
             reached += 1
-        if self.ca_out is not None and Parts.CA_OUT in parts:
+        if self.ca_out is not None and Parts.SETPOINT in parts:
             _set_out_record_alarm(self.ca_out, severity, status)
             reached += 1
-        for pv, part in (
-            (self.pva_read, Parts.PVA_READ),
-            (self.pva_write, Parts.PVA_WRITE),
-        ):
-            if pv is not None and part in parts:
-                _post_pva_alarm(pv, severity, pva_status(status), message)
-                reached += 1
         return reached
 
 
 def endpoints_of(attribute: Attribute[Any, Any]) -> Endpoints:
-    """Where FastCS serves `attribute` so far (transports connected/serving)."""
+    """Where `attribute` is served (once the transport has connected)."""
     from fastcs.attributes import AttrR, AttrW
 
     read_callbacks: list[Callable[..., Any]] = []
-    write_callbacks: Iterable[Callable[..., Any]] = ()
     if isinstance(attribute, AttrR):
         read_callbacks = [cb for cb, _ in attribute._on_update_callbacks or ()]  # pyright: ignore[reportPrivateUsage]
-    if isinstance(attribute, AttrW):
-        write_callbacks = attribute._sync_setpoint_callbacks  # pyright: ignore[reportPrivateUsage]
     names = _ca_names(attribute, reads=True)
     ca_out = _ca_record(names[0]) if names and isinstance(attribute, AttrW) else None
     ca_in = _ca_record(names[-1]) if names and isinstance(attribute, AttrR) else None
-    others = tuple(
-        cb for cb in read_callbacks if not (_is(cb, CA_READ) or _is(cb, PVA_READ))
-    )
-    return Endpoints(
-        attribute,
-        ca_in=ca_in,
-        ca_out=ca_out,
-        pva_read=_find(read_callbacks, PVA_READ),
-        pva_write=_find(write_callbacks, PVA_WRITE),
-        others=others,
-    )
-
-
-def _find(callbacks: Iterable[Callable[..., Any]], closure: _Closure) -> Any:
-    for callback in callbacks:
-        if _is(callback, closure):
-            code: types.CodeType = callback.__code__  # type: ignore[attr-defined]
-            cells = callback.__closure__ or ()  # type: ignore[attr-defined]
-            return cells[code.co_freevars.index(closure.cell)].cell_contents
-    return None
-
-
-def _is(callback: Callable[..., Any], closure: _Closure) -> bool:
-    return (
-        getattr(callback, "__module__", None) == closure.module
-        and getattr(callback, "__qualname__", None) == closure.qualname
-    )
+    others = tuple(cb for cb in read_callbacks if not CA_READ.made(cb))
+    return Endpoints(attribute, ca_in=ca_in, ca_out=ca_out, others=others)
 
 
 # -- publishing values ---------------------------------------------------------
@@ -286,11 +222,11 @@ _UDF: Final = 17
 
 
 class ValueRoute:
-    """Publishes `Update`s of one attribute, once the transports serve.
+    """Publishes `Update`s of one attribute, once the database serves.
 
-    `post` hands the value to the CA in record (softioc's `set`: EPICS
-    processes the record, its alarm limits and deadbands apply) and the PVA
-    read PV, and returns what must still be awaited: the first setpoint sync
+    `post` hands the value to the in record (softioc's `set`: EPICS processes
+    the record, its alarm limits and deadbands apply, CA and PVA monitors
+    get it) and returns what must still be awaited: the first setpoint sync
     of an `AttrRW`, and on-update callbacks of anyone else, as `update()`
     would call them; None almost always.
     """
@@ -306,30 +242,27 @@ class ValueRoute:
         self._to_epics = cast_to_epics_type
         self._is_float = isinstance(attribute.datatype, Float)
         device = self.endpoints.ca_in
-        self._set_ca: Callable[..., None] | None = (
+        self._set: Callable[..., None] | None = (
             device.set if device is not None else None
         )
-        pv = self.endpoints.pva_read
-        self._pva = _pva_poster(pv.post, attribute) if pv is not None else None
 
     def post(self, update: Update) -> Awaitable[None] | None:
-        """What `attribute.update(update)` will do: value, posts, setpoint."""
+        """What `attribute.update(update)` will do: value, record, setpoint."""
         attribute, value = self.attribute, update.value
         attribute._value = value  # pyright: ignore[reportPrivateUsage]
         events = attribute._on_update_events  # pyright: ignore[reportPrivateUsage]
         if events:
             attribute._on_update_events = {e for e in events if not e.set(value)}  # pyright: ignore[reportPrivateUsage]
-        if self._is_float and math.isnan(value):  # as an ai record reads NaN
-            update = update._replace(severity=_INVALID, status=_UDF)
-        if self._set_ca is not None:
-            self._set_ca(
+        if self._set is not None:
+            severity, status = update.severity, update.status
+            if self._is_float and math.isnan(value):  # as an ai record reads NaN
+                severity, status = _INVALID, _UDF
+            self._set(
                 self._to_epics(attribute.datatype, value),
-                update.severity,
-                update.status,
+                severity,
+                status,
                 update.timestamp,
             )
-        if self._pva is not None:
-            self._pva(update)
         if self.endpoints.others or (
             self._writable and not attribute._setpoint_initialised  # pyright: ignore[reportAttributeAccessIssue]
         ):
@@ -349,78 +282,6 @@ class ValueRoute:
         pending = self.post(update)
         if pending is not None:
             await pending
-
-
-def _pva_poster(
-    post: Callable[..., None], attribute: AttrR[Any, Any]
-) -> Callable[[Update], None]:
-    """Posts an update's value, alarm and time in the form FastCS's PV takes
-    (`post`: the PV's)."""
-    from fastcs.datatypes import Bool, Enum, Float, Int, String, Waveform
-    from fastcs.transports.epics.pva.types import cast_to_p4p_value
-
-    def alarm_of(update: Update) -> dict[str, Any]:
-        status = pva_status(update.status)
-        return {
-            "severity": update.severity,
-            "status": status,
-            "message": update.message,
-        }
-
-    def scalar(update: Update) -> None:
-        alarm = alarm_of(update) if update.severity else _NO_ALARM
-        post(
-            {
-                "value": update.value,
-                "alarm": alarm,
-                "timeStamp": pva_time(update.timestamp),
-            }
-        )
-
-    def wrapped(update: Update) -> None:  # NTEnum, NTNDArray: p4p wraps them
-        post(
-            cast_to_p4p_value(attribute, update.value),
-            timestamp=update.timestamp,
-            severity=update.severity,
-            message=update.message,
-        )
-
-    def plain(update: Update) -> None:
-        post(cast_to_p4p_value(attribute, update.value))
-
-    datatype = attribute.datatype
-    if isinstance(datatype, Int | Float | Bool | String):
-        return scalar
-    return wrapped if isinstance(datatype, Enum | Waveform) else plain
-
-
-def _post_pva_alarm(pv: Any, severity: int, status: int, message: str) -> None:
-    """Post only alarm and time, so the value stays as last posted."""
-    now = time.time()
-    if isinstance(pv.current(), np.ndarray):
-        # NTNDArray (a FastCS Waveform) wraps only arrays; its alarm has no status.
-        pv.post(pv.current(), severity=severity, message=message, timestamp=now)
-        return
-    pv.post(
-        {
-            "alarm": {"severity": severity, "status": status, "message": message},
-            "timeStamp": pva_time(now),
-        }
-    )
-
-
-_PVA_STATUS_OF: Final = {
-    **dict.fromkeys((1, 2, 3, 4, 5, 6, 7, 8, 11), 1),  # READ..COS, HWLIMIT: DEVICE
-    **dict.fromkeys((9, 10, 17), 2),  # COMM, TIMEOUT, UDF: DRIVER
-    **dict.fromkeys((12, 13, 14, 15, 16), 3),  # CALC..BAD_SUB: RECORD
-    **dict.fromkeys((18, 19, 20, 21), 4),  # DISABLE..WRITE_ACCESS: DB
-}
-"""CA alarm status (menuAlarmStat) -> the PVA alarm_t status, as QSRV groups
-them; 6 (UNDEFINED) for anything else but NO_ALARM."""
-
-
-def pva_status(status: int) -> int:
-    return 0 if status == 0 else _PVA_STATUS_OF.get(status, 6)
 
 
 # -- softioc -------------------------------------------------------------------
@@ -528,8 +389,8 @@ def take_over_setpoints(attribute: Attribute[Any, Any]) -> None:
 
 
 async def sync_setpoint(attribute: Attribute[Any, Any], value: Any) -> None:
-    """Show `value` on every setpoint PV of `attribute` (CA out record
-    without processing, PVA setpoint PV), as FastCS does at start."""
+    """Show `value` on the setpoint of `attribute` (its out record, without
+    processing), as FastCS does at start."""
     from fastcs.attributes import AttrW
 
     if isinstance(attribute, AttrW):
@@ -574,20 +435,12 @@ def version_problems() -> list[str]:
 def shape_problems() -> list[str]:
     """Private names used above that the installed packages no longer have."""
     problems: list[str] = []
-    for closure in (CA_READ, CA_WRITE, PVA_READ, PVA_WRITE):
-        outer = getattr(importlib.import_module(closure.module), closure.outer, None)
-        if not isinstance(outer, types.FunctionType):
-            problems.append(f"fastcs: {closure.module}.{closure.outer} is gone")
-            continue
-        inner = [
-            const
-            for const in outer.__code__.co_consts
-            if isinstance(const, types.CodeType) and const.co_name == closure.inner
-        ]
-        if not inner:
-            problems.append(f"fastcs: {closure.qualname} is gone")
-        elif closure.cell not in inner[0].co_freevars:
-            problems.append(f"fastcs: {closure.qualname} has no {closure.cell}")
+    outer = getattr(importlib.import_module(CA_READ.module), CA_READ.outer, None)
+    if not isinstance(outer, types.FunctionType) or not any(
+        isinstance(const, types.CodeType) and const.co_name == CA_READ.inner
+        for const in outer.__code__.co_consts
+    ):
+        problems.append(f"fastcs: {CA_READ.module}.{CA_READ.qualname} is gone")
     from fastcs.attributes import AttrR, AttrRW, AttrW
     from fastcs.datatypes import Int
 
@@ -623,7 +476,7 @@ def _softioc_problems() -> list[str]:
 
 
 def import_ioc_modules() -> None:
-    """Import FastCS with its CA and PVA transports (once), EPICS without
+    """Import FastCS with its CA transport (once), EPICS without
     real-time threads (`scheduling`)."""
     if not all(name in sys.modules for name in IOC_MODULES):
         from fastcs_ethercat.ioc.scheduling import give_up_realtime_scheduling
@@ -636,9 +489,8 @@ def import_ioc_modules() -> None:
 IOC_MODULES: Final = (
     "fastcs",
     "fastcs.transports.epics.ca.transport",
-    "fastcs.transports.epics.pva.transport",
 )
-"""What an IOC imports: FastCS, softioc (CA) and p4p (PVA)."""
+"""What an IOC imports: FastCS and softioc."""
 
 
 def check_installed() -> None:

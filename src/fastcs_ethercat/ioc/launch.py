@@ -4,20 +4,19 @@ FastCS's own `launch()` builds its controllers from a YAML schema of their
 `__init__`; our tree comes from the live symbol table instead, so this module
 builds the transports itself and runs `FastCS` directly:
 
-- CA: FastCS's `EpicsCATransport` as `ioc.database` makes it (records that
-  behave as EPICS records, the site's databases, iocInit; the callback queue
+- the database: FastCS's `EpicsCATransport` as `ioc.database` makes it
+  (records that behave as EPICS records, their PVI entries, the site's
+  databases, iocInit), served on CA, PVA (QSRV) or both; the callback queue
   is enlarged before iocInit, because every changed value of every record
   queues one callback and the EPICS default of 2000 overflows on a large
-  rack),
-- PVA: `EpicsPVATransport` (p4p), which also serves the PVI structure
-  `<path>:PVI` of every controller.
+  rack,
+- the access security rules (`ioc.access`), when there are any.
 
 softioc can initialise only once per process, so an IOC (and every test of
 one) lives in its own process. `on_built` runs once the tree is built,
 before anything serves (the screens are written there: `ioc.screens`);
-`on_pvs_built` once every CA record and PVA PV exists; the ready line goes
-to stdout once both transports serve, so a parent process knows when to
-look for PVs (and screens).
+`on_pvs_built` once iocInit has returned; the ready line goes to stdout
+then, so a parent process knows when to look for PVs (and screens).
 """
 
 from __future__ import annotations
@@ -49,7 +48,7 @@ class LaunchOptions:
     ca: bool = True
     pva: bool = True
     ca_aliases: Mapping[str, str] = field(default_factory=dict)
-    """Extra CA record names, full PV -> alias (CA only; PVA has no aliases)."""
+    """Extra record names, full PV -> alias (QSRV serves aliases on PVA too)."""
     callback_queue_size: int = DEFAULT_CALLBACK_QUEUE_SIZE
     access_security_file: Path | None = None
     """ACF loaded at iocInit; outputs get ASG OUTPUTS, CoE parameters COE."""
@@ -57,7 +56,7 @@ class LaunchOptions:
     """Outputs and CoE parameters served read-only: their records in ASG
     READ_ONLY (CA clients see "no write")."""
     site_databases: Sequence[SiteDatabase] = ()
-    """A site's .db files, loaded after the IOC's own records (CA only)."""
+    """A site's .db files, loaded after the IOC's own records."""
 
     def __post_init__(self) -> None:
         if not (self.ca or self.pva):
@@ -66,27 +65,26 @@ class LaunchOptions:
 
 def build_transports(options: LaunchOptions) -> list[Transport]:
     """The FastCS transports for `options` (imports softioc only for CA)."""
-    transports: list[Transport] = []
-    if options.ca:
-        from fastcs_ethercat.ioc.database import database_transport
+    from fastcs_ethercat.ioc.database import database_transport
+
+    transports: list[Transport] = [
+        database_transport(
+            options.ca_aliases,
+            options.site_databases,
+            ca=options.ca,
+            pva=options.pva,
+        )
+    ]
+    if options.access_security_file is not None or options.read_only:
+        from fastcs_ethercat.ioc.access import AccessSecurity, access_group_of
 
         transports.append(
-            database_transport(options.ca_aliases, options.site_databases)
-        )
-        if options.access_security_file is not None or options.read_only:
-            from fastcs_ethercat.ioc.access import AccessSecurity, access_group_of
-
-            transports.append(
-                AccessSecurity(
-                    options.access_security_file,
-                    access_group_of,
-                    read_only=options.read_only,
-                )
+            AccessSecurity(
+                options.access_security_file,
+                access_group_of,
+                read_only=options.read_only,
             )
-    if options.pva:
-        from fastcs.transports.epics.pva.transport import EpicsPVATransport
-
-        transports.append(EpicsPVATransport())
+        )
     return transports
 
 
@@ -109,10 +107,9 @@ def build_fastcs(
         raise ValueError(f"root controller already has path {root.path}")
     if not root.path:
         root.set_path([prefix])
-    if options.ca:
-        from fastcs_ethercat.ioc.database import set_callback_queue_size
+    from fastcs_ethercat.ioc.database import set_callback_queue_size
 
-        set_callback_queue_size(options.callback_queue_size)
+    set_callback_queue_size(options.callback_queue_size)
     announce = _Announce(prefix, on_ready, on_built, on_pvs_built)
     transports = [*build_transports(options), announce]
     return FastCS(root, transports, loop)
@@ -149,13 +146,12 @@ def run(
     finally:
         _cancel_left_tasks(loop)
         loop.close()
-    if options.ca:
-        # FastCS logs an exception of a transport's `serve` and returns: the
-        # database's (a site database EPICS cannot load) is raised here
-        from fastcs_ethercat.ioc.database import failure
+    # FastCS logs an exception of a transport's `serve` and returns: the
+    # database's (a site database EPICS cannot load) is raised here
+    from fastcs_ethercat.ioc.database import failure
 
-        if (error := failure()) is not None:
-            raise error
+    if (error := failure()) is not None:
+        raise error
 
 
 def _cancel_left_tasks(loop: asyncio.AbstractEventLoop) -> None:
@@ -173,9 +169,8 @@ class _Announce(Transport):
     exist and prints the ready line once the real transports serve.
 
     FastCS connects every transport after the root's `initialise()`, then
-    gathers their `serve()` in order: CA runs iocInit (`ioc.database`) and
-    PVA builds its PVs and starts its p4p server in their first step; once
-    this last one has yielded a few times, both are up.
+    gathers their `serve()` in order: the database's runs iocInit
+    (`ioc.database`), which starts the CA and PVA servers.
     """
 
     def __init__(

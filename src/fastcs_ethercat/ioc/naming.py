@@ -81,8 +81,9 @@ MIN_LEAF: Final = 8
 MAX_CONTROLLER_SEGMENT: Final = 16
 """A master, coupler or terminal with a name of its own stays this short."""
 ALIAS_SEPARATOR: Final = "^"
-RESERVED_SEGMENTS: Final = frozenset({"pvi"})
-"""Lower-cased names FastCS itself serves under every controller (`<path>:PVI`)."""
+RESERVED_SEGMENTS: Final = frozenset({"pvi", "pvi_pv"})
+"""Lower-cased names served under every controller for PVI (`<path>:PVI`,
+the structure, and `<path>:PVI_PV`, the record naming it: `ioc.pvi`)."""
 GROUP_WORDS: Final = frozenset({"status", "control"})
 """The ESI's bit-field groups (`Status__Underrange`): left out of value names."""
 
