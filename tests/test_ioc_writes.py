@@ -390,7 +390,8 @@ def _write_and_check(
     else:
         # completed once the record has processed: its alarm is the verdict
         rig.context.put(rig.pv(name), value, timeout=10, wait=True)
-        alarm: Any = rig.context.get(rig.pv(name), timeout=10).raw.alarm  # pyright: ignore[reportAttributeAccessIssue]
+        shown: Any = rig.context.get(rig.pv(name), timeout=10)
+        alarm = shown.raw.alarm
         verdict = alarm.message if alarm.severity == INVALID else ""
         status = verdict if verdict in ("WRITE", "TIMEOUT") else ""
     if status == "TIMEOUT":
