@@ -109,11 +109,13 @@ class IocProcess:
             useenv=False,
         )
 
-    def stop(self) -> None:
-        """Stop the IOC and everything carrying its token, by PID."""
-        self.child.stop()
+    def stop(self) -> int | None:
+        """Stop the IOC and everything carrying its token, by PID; the IOC's
+        exit code (negative: killed by that signal)."""
+        code = self.child.stop()
         for pid in processes_with_token(self.token):
             stop_pid(pid)
+        return code
 
 
 def start_ioc(

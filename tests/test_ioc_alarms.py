@@ -22,12 +22,13 @@ from fastcs.attributes import AttrR
 from fastcs.datatypes import Int
 
 from fastcs_ethercat.ioc.alarms import (
+    AlarmState,
     Severity,
     Status,
-    set_alarm,
+    publish_alarm,
 )
 from fastcs_ethercat.ioc.fastcs_adapter import (
-    endpoints_of,
+    records_of,
     shape_problems,
     version_problems,
 )
@@ -57,11 +58,12 @@ def test_installed_packages_have_the_shape_the_adapter_reads() -> None:
     assert shape_problems() == []
 
 
-def test_an_attribute_without_transports_has_no_endpoints() -> None:
+def test_an_attribute_without_records_has_no_alarm_to_show() -> None:
     attribute = AttrR(Int())
 
-    assert not endpoints_of(attribute)
-    assert set_alarm(attribute, Severity.INVALID, Status.COMM) == 0
+    records = records_of(attribute)
+    assert records.readback is None and records.setpoint is None
+    assert publish_alarm(attribute, AlarmState(Severity.INVALID, Status.COMM)) == 0
 
 
 @pytest.fixture(scope="module")
@@ -186,8 +188,12 @@ def test_only_the_alarmed_attribute_goes_into_alarm(ioc: IocProcess) -> None:
     command(ioc, "clear Mode")
 
     assert on_ca == {"Mode": "STATE MINOR", "Temperature": "", "Output_RBV": ""}
-    # QSRV: status DEVICE, the record's STAT as the message (the text: the log)
-    assert on_p4p["Mode"] == {"severity": 1, "status": 1, "message": "STATE"}
+    # QSRV: status DEVICE, the record's AMSG as the message: status and text
+    assert on_p4p["Mode"] == {
+        "severity": 1,
+        "status": 1,
+        "message": "STATE: terminal left OP",
+    }
     assert on_p4p["Temperature"]["severity"] == 0
 
 

@@ -54,7 +54,9 @@ def test_a_missing_config_is_one_error_line(tmp_path: Path) -> None:
     ]
 
 
-def test_an_untested_fastcs_version_stops_the_ioc_in_one_line(tmp_path: Path) -> None:
+def test_an_unsupported_fastcs_version_stops_the_ioc_in_one_line(
+    tmp_path: Path,
+) -> None:
     """FastCS's metadata says 0.99.0 (a dist-info ahead on the path): the IOC
     refuses before anything else, naming the package and both versions."""
     fake = tmp_path / "fastcs-0.99.0.dist-info"
@@ -66,8 +68,8 @@ def test_an_untested_fastcs_version_stops_the_ioc_in_one_line(tmp_path: Path) ->
 
     assert done.returncode == 2
     assert done.stderr.strip().splitlines() == [
-        "error: packages: fastcs 0.99.0 is installed, fastcs-ethercat is tested "
-        "with fastcs>=0.14.4,<0.15: install the versions pyproject.toml names"
+        "error: packages: fastcs 0.99.0 is installed, fastcs-ethercat supports "
+        "fastcs>=0.14,<0.15: install the versions pyproject.toml names"
     ]
 
 

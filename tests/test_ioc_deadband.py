@@ -55,11 +55,11 @@ def test_only_polled_numbers_have_a_deadband() -> None:
 
 
 @pytest.fixture
-def started(monkeypatch: pytest.MonkeyPatch) -> Publisher:
+async def started(monkeypatch: pytest.MonkeyPatch) -> Publisher:
     # the collector settings are for an IOC process, not the test session
     monkeypatch.setattr(publish, "settle_garbage_collector", lambda: None)
     publisher = Publisher(Deadbands.of_config({"*.Value": 3}))
-    publisher.start()
+    await publisher.start()
     return publisher
 
 

@@ -129,15 +129,18 @@ def _settle(rack: Rack, volts: float) -> None:
 
 
 def test_operator_fields_and_the_display_range(rack: Rack) -> None:
-    found = caget(
-        rack.ioc,
-        *(f"{rack.value}.{name}" for name in ("DISP", "HOPR", "LOPR", "EGU", "TSE")),
-    )
-    assert [found[f"{rack.value}.{name}"] for name in ("DISP", "TSE", "EGU")] == [
+    """An ordinary EPICS input record: soft device support, processed when
+    its value is put, its time from the clock record, open to operators."""
+    names = ("DTYP", "SCAN", "DISP", "HOPR", "LOPR", "EGU", "TSEL")
+    found = caget(rack.ioc, *(f"{rack.value}.{name}" for name in names))
+    shown = {name: found[f"{rack.value}.{name}"] for name in names}
+    assert [shown[name] for name in ("DTYP", "SCAN", "DISP", "EGU")] == [
+        "Soft Channel",
+        "Passive",
         "0",
-        "-2",
         "V",
     ]
+    assert shown["TSEL"].startswith(f"{rack.ioc.prefix}:ReadTime.TIME")
     assert float(found[f"{rack.value}.HOPR"]) == pytest.approx(10.0)
     assert float(found[f"{rack.value}.LOPR"]) == pytest.approx(-10.0, abs=1e-3)
 
@@ -148,7 +151,7 @@ def test_hihi_raises_major_and_hyst_holds_it(fields: Rack) -> None:
     rack.put("HYST", "1")
     rack.put("HHSV", "MAJOR")
     rack.put("HIHI", "4")
-    rack.put("PROC", "1")  # I/O Intr: limits apply at the next processing
+    rack.put("PROC", "1")  # the limits apply from the next processing
     raised = wait_for(lambda: rack.alarm()[1:] == ["HIHI", "MAJOR"], 10)
     _settle(rack, 3.5)  # below HIHI, within HYST of it: still in alarm
     held = rack.alarm()
@@ -290,3 +293,52 @@ def test_a_site_database_that_does_not_load_stops_the_ioc(
     assert "Traceback" not in done.stderr
     last = done.stderr.strip().splitlines()[-1]
     assert "broken.db" in last and said in last, done.stderr[-2000:]
+
+
+def test_operator_settings_survive_a_restart_and_no_output_is_written(
+    rack: Rack, tmp_path: Path
+) -> None:
+    """softioc's autosave keeps what was set; the next start has it before
+    it serves, and writes nothing to the PLC (outputs are never restored)."""
+    token = new_token()
+    env = ioc_env(token)
+    prefix = f"TST{token[:6].upper()}"
+    config = write_ioc_config(
+        tmp_path,
+        prefix,
+        rack.sim.pyads_ip,
+        rack.sim.net_id,
+        autosave_dir="autosave",
+    )
+    value = f"{prefix}:{VALUE}"
+    output = f"{prefix}:ETH1:RIO18:MOD20:CH1:Output"
+
+    def served() -> IocProcess:
+        ioc = start_ioc([*IOC_COMMAND, "--config", str(config)], prefix, env, token)
+        ioc.wait_for_line("ioc ready", START_TIMEOUT)
+        return ioc
+
+    first = served()
+    try:
+        for pv, setting in ((f"{value}.HIHI", "7.5"), (f"{value}.DESC", "beam")):
+            assert "New" in first.tool("caput", pv, setting)
+        assert "New" in first.tool("caput", f"{output}.OSV", "MINOR")
+        first.tool("caput", "-c", output, "1")  # an output set: not kept
+    finally:
+        stopped = first.stop()  # before the first periodic save: saved at exit
+    rack.sim.reset_counters()
+    second = served()
+    try:
+        kept = caget(second, f"{value}.HIHI", f"{value}.DESC", f"{output}.OSV")
+        written = rack.sim.counters()
+    finally:
+        second.stop()
+
+    assert stopped == 0  # SIGTERM ends the IOC, autosave's thread included
+    assert float(kept[f"{value}.HIHI"]) == 7.5
+    assert kept[f"{value}.DESC"] == "beam"
+    assert kept[f"{output}.OSV"] == "MINOR"
+    assert written["commands"].get("Write", 0) == 0, written
+    assert "0xF081" not in written["index_groups"], written  # no sum write either
+    saved = (tmp_path / "autosave" / f"{prefix}.softsav").read_text()
+    assert f"{value}.HIHI" in saved and f"{output}:" not in saved

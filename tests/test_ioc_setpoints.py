@@ -1,8 +1,9 @@
-"""What an output's setpoint shows, in-process: an `AttrRW` (no records, no
-target), `Health` and `Setpoints` deciding its readback's and setpoint's
-value and alarm (the records that show them are the end-to-end tests');
-and the supervisor's resync on request (a master whose handles went
-invalid)."""
+"""What an output's setpoint shows, in-process: an `AttrRW` (no database,
+no target), `Health` and `Setpoints` deciding its readback's and setpoint's
+value and alarm (the records that show them are the end-to-end tests':
+softioc serves one database per process, so here the setpoint record is a
+stand-in that keeps the value shown); and the supervisor's resync on
+request (a master whose handles went invalid)."""
 
 from __future__ import annotations
 
@@ -10,29 +11,54 @@ import asyncio
 import time
 from typing import Any
 
-from fastcs.attributes import AttrRW
+import pytest
+from fastcs.attributes import Attribute, AttrRW
 from fastcs.datatypes import Int
 
 from fastcs_ethercat.ads.constants import AdsState
+from fastcs_ethercat.ioc import setpoints as setpoints_module
 from fastcs_ethercat.ioc.alarms import AlarmState, Severity, Status, value_alarm
 from fastcs_ethercat.ioc.health import COMM, Health
 from fastcs_ethercat.ioc.setpoints import WAITING, Setpoints
 from fastcs_ethercat.ioc.supervisor import Probe, Supervisor
 
 
+class SetpointRecord:
+    """Stands in for an output's records: keeps the value shown on the
+    setpoint (`AttributeRecords.show_setpoint`)."""
+
+    def __init__(self) -> None:
+        self.value: Any = 0
+
+    def show_setpoint(self, value: Any) -> None:
+        self.value = value
+
+
+SHOWN: dict[int, SetpointRecord] = {}
+
+
+@pytest.fixture(autouse=True)
+def setpoint_records(monkeypatch: pytest.MonkeyPatch) -> None:
+    def records_of(attribute: Attribute[Any, Any]) -> SetpointRecord:
+        return SHOWN.setdefault(id(attribute), SetpointRecord())
+
+    SHOWN.clear()
+    monkeypatch.setattr(setpoints_module, "records_of", records_of)
+
+
 class Output:
     """An output attribute, and what its readback and setpoint show as
-    `Health` decides it: the values through FastCS's own callbacks, the
+    `Health` decides it: the setpoint's value as shown on its record, the
     alarms from `Health`."""
 
     def __init__(self, health: Health) -> None:
         self.health = health
         self.attribute = AttrRW(Int(), initial_value=0)
-        self.setpoint = self.attribute.datatype.initial_value
-        self.attribute.add_sync_setpoint_callback(self._synced)
 
-    async def _synced(self, value: Any) -> None:
-        self.setpoint = value
+    @property
+    def setpoint(self) -> Any:
+        shown = SHOWN.get(id(self.attribute))
+        return 0 if shown is None else shown.value
 
     def shown(self) -> tuple[tuple[Any, int], tuple[Any, int, str]]:
         """(value, severity) of the readback, then (value, severity,

@@ -8,11 +8,11 @@ the output goes to ASG OUTPUTS, the parameter to ASG COE, the setting stays
 in DEFAULT; a write-only attribute refuses every write. Each stdin line is a command,
 answered by one `done <command> <number>` line on stdout:
 
-    alarm NAME SEVERITY STATUS [MESSAGE...]   set_alarm, number: PVs reached
-    clear NAME                                clear_alarm
-    alarm-all SEVERITY STATUS                 set_alarms on every attribute
+    alarm NAME SEVERITY STATUS [MESSAGE...]   publish_alarm, number: PVs reached
+    clear NAME                                back to the value's own alarm
+    alarm-all SEVERITY STATUS                 publish_alarm on every attribute
                                               (also prints how long it took)
-    update NAME VALUE                         attribute.update(value)
+    update NAME VALUE                         the value posted (ioc.publish)
     asactive                                  1 if access security is on
 """
 
@@ -46,10 +46,12 @@ from fastcs_ethercat.ioc.alarms import (
     Severity,
     Status,
     publish_alarm,
-    set_alarm,
     value_alarm,
 )
 from fastcs_ethercat.ioc.launch import LaunchOptions, build_transports
+from fastcs_ethercat.ioc.publish import Publisher
+
+PUBLISHER = Publisher()
 
 
 def clear_alarm(attribute: Attribute[Any, Any]) -> int:
@@ -60,7 +62,7 @@ def clear_alarm(attribute: Attribute[Any, Any]) -> int:
 def set_alarms(
     attributes: Iterable[Attribute[Any, Any]], severity: Severity, status: Status
 ) -> int:
-    """`set_alarm` for every attribute; records reached."""
+    """`publish_alarm` for every attribute; records reached."""
     state = AlarmState(severity, status)
     return sum(publish_alarm(attribute, state) for attribute in attributes)
 
@@ -111,7 +113,11 @@ def group_of(attribute: Attribute[Any, Any]) -> str | None:
 
 
 class Ready(Transport):
-    """Prints the ready line once the real transports had time to start."""
+    """Posts the attributes' first values and prints the ready line once
+    the database serves."""
+
+    def __init__(self, controller: Controller) -> None:
+        self.controller = controller
 
     def connect(
         self, controller_apis: list[ControllerAPI], loop: asyncio.AbstractEventLoop
@@ -119,8 +125,11 @@ class Ready(Transport):
         """Nothing to connect."""
 
     async def serve(self) -> None:
-        for _ in range(3):
-            await asyncio.sleep(0)
+        from fastcs_ethercat.ioc.database import initialised
+
+        await initialised()
+        attributes = self.controller.attributes.values()
+        await PUBLISHER.start([a for a in attributes if isinstance(a, AttrR)])
         print("alarm ioc ready", flush=True)
 
 
@@ -129,9 +138,8 @@ async def handle(controller: AlarmTestController, line: str) -> int:
     attributes: dict[str, Attribute[Any, Any]] = controller.attributes
     match words:
         case ["alarm", name, severity, status, *message]:
-            return set_alarm(
-                attributes[name], Severity[severity], Status[status], " ".join(message)
-            )
+            state = AlarmState(Severity[severity], Status[status], " ".join(message))
+            return publish_alarm(attributes[name], state)
         case ["clear", name]:
             return clear_alarm(attributes[name])
         case ["alarm-all", severity, status]:
@@ -145,8 +153,7 @@ async def handle(controller: AlarmTestController, line: str) -> int:
         case ["update", name, value]:
             attribute = attributes[name]
             assert isinstance(attribute, AttrR)
-            await attribute.update(attribute.datatype.validate(float(value)))
-            return 1
+            return int(await PUBLISHER.publish(attribute, float(value)))
         case ["asactive"]:
             return int(_access_security_active())
     raise ValueError(f"unknown command {line!r}")
@@ -179,7 +186,7 @@ def main() -> None:
     transports = [
         *build_transports(LaunchOptions()),
         AccessSecurity(arguments.acf, group_of, read_only=arguments.read_only),
-        Ready(),
+        Ready(controller),
     ]
     threading.Thread(target=read_commands, args=(controller, loop), daemon=True).start()
     FastCS(controller, transports, loop).run(interactive=False)

@@ -80,9 +80,10 @@ class Ready(Transport):
         """Nothing to connect."""
 
     async def serve(self) -> None:
-        for _ in range(3):
-            await asyncio.sleep(0)
-        self.health.publisher.start()
+        from fastcs_ethercat.ioc.database import initialised
+
+        await initialised()
+        await self.health.publisher.start()
         print("publish ioc ready", flush=True)
 
 

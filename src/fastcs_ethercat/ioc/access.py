@@ -26,7 +26,6 @@ security for every put as the CA server does: one ACF governs both.
 from __future__ import annotations
 
 import asyncio
-import ctypes
 import re
 import shutil
 import subprocess
@@ -42,6 +41,7 @@ from fastcs.transports import Transport
 
 from fastcs_ethercat.bounded import MAX_ACF_BYTES, read_text_bounded
 from fastcs_ethercat.errors import UserError
+from fastcs_ethercat.ioc.dbaccess import is_serving, set_access_security_file
 from fastcs_ethercat.ioc.fastcs_adapter import database_records
 
 OUTPUTS_GROUP: Final = "OUTPUTS"
@@ -123,15 +123,10 @@ def _acf_error(path: Path, complaint: str) -> UserError:
 
 def load_access_security(path: Path) -> None:
     """Check `path` and make iocInit load it; call before the CA transport serves."""
-    if _database_loaded():
+    if is_serving():
         raise RuntimeError("access security must be loaded before iocInit")
     check_acf(path)
-    from epicscorelibs.ioc import dbCore
-
-    as_set_filename = dbCore.asSetFilename
-    as_set_filename.argtypes = (ctypes.c_char_p,)
-    as_set_filename.restype = ctypes.c_int
-    if as_set_filename(str(path.resolve()).encode()) != 0:
+    if not set_access_security_file(str(path.resolve())):
         raise UserError("EPICS did not accept the access security file", path=path)
 
 
@@ -143,7 +138,7 @@ def assign_access_group(
 
     Only between the CA transport's connect and serve (see module docstring).
     """
-    if _database_loaded():
+    if is_serving():
         raise RuntimeError("ASG fields must be set before the CA database loads")
     names = []
     for attribute in attributes:
@@ -267,9 +262,3 @@ def _read_only_group_of(attribute: Attribute[Any, Any]) -> str | None:
         isinstance(ref, CoeRef) and ref.coe.writable
     )
     return READ_ONLY_GROUP if writable else None
-
-
-def _database_loaded() -> bool:
-    from softioc.pythonSoftIoc import RecordWrapper
-
-    return RecordWrapper.is_builder_reset()

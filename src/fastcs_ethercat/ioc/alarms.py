@@ -1,10 +1,11 @@
 """Put an attribute's PVs into alarm, or out of it (its records: CA and PVA
 serve the same ones).
 
-FastCS 0.14.4 has no alarm API for attributes: `fastcs_adapter` reaches the
+FastCS 0.14 has no alarm API for attributes: `fastcs_adapter` reaches the
 records its transport made and gives them a new alarm with the same value
-(in records processed with their held value, out records without
-processing).
+(in records raised and processed with their value, so their own limits and
+links take part; out records made current without processing, which would
+write to the PLC). The time of the alarm is the time it is shown.
 
 Alarms are not sticky, as in an EPICS record: the next value published for
 the attribute carries its own alarm again (`value_alarm`: NO_ALARM, or the
@@ -21,9 +22,9 @@ from typing import Any, Final
 
 from fastcs.attributes import Attribute
 
-from fastcs_ethercat.ioc import fastcs_adapter
 from fastcs_ethercat.ioc.datatypes import severity_table
-from fastcs_ethercat.ioc.fastcs_adapter import Parts
+from fastcs_ethercat.ioc.fastcs_adapter import Parts, records_of
+from fastcs_ethercat.ioc.read_clock import set_clock
 
 
 class Severity(IntEnum):
@@ -92,23 +93,14 @@ def value_alarm(attribute: Attribute[Any, Any]) -> AlarmState:
     return AlarmState(Severity(severity), VALUE_STATUS) if severity else NO_ALARM
 
 
-def set_alarm(
-    attribute: Attribute[Any, Any],
-    severity: Severity,
-    status: Status,
-    message: str = "",
-    parts: Parts = Parts.ALL,
-) -> int:
-    """Raise `attribute`'s PVs (of `parts`) to this alarm, value unchanged;
-    PVs reached."""
-    return publish_alarm(attribute, AlarmState(severity, status, message), parts)
-
-
 def publish_alarm(
     attribute: Attribute[Any, Any], state: AlarmState, parts: Parts = Parts.ALL
 ) -> int:
     """Publish `state` on the records of `attribute` (of `parts`: its
-    readback, its setpoint or both)."""
-    return fastcs_adapter.endpoints_of(attribute).publish_alarm(
-        int(state.severity), int(state.status), parts
+    readback, its setpoint or both). The record's alarm message (AMSG, the
+    message PVA clients see) is `STATUS: text`, so they see the status too."""
+    set_clock()
+    message = f"{state.status.name}: {state.message}" if state.message else ""
+    return records_of(attribute).publish_alarm(
+        int(state.severity), int(state.status), message, parts
     )

@@ -81,6 +81,7 @@ def serve(
         access_security_file=config.access_security_file,
         read_only=config.read_only,
         site_databases=config.site_databases(),
+        autosave_dir=config.autosave_dir,
     )
     try:
         run(
@@ -93,6 +94,11 @@ def serve(
         )
     except asyncio.CancelledError:  # SIGTERM before FastCS serves (the PLC away)
         logger.info("stopped before serving")
+    finally:
+        if config.autosave_dir is not None:
+            from fastcs_ethercat.ioc.fastcs_adapter import stop_autosave
+
+            stop_autosave()
 
 
 def write_lists(root: RootController, config: IocConfig) -> None:

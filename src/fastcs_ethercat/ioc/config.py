@@ -255,6 +255,13 @@ class IocConfig(_Strict):
         "(`archiver.json`) and the autosave request file (`autosave.req`) of the "
         "PVs served (relative to this file); none when unset.",
     )
+    autosave_dir: Path | None = Field(
+        default=None,
+        description="Where softioc's autosave keeps what operators set on the "
+        "records (alarm limits and severities, hysteresis, deadbands, DESC; "
+        "never a value), restored at the next start before the IOC serves "
+        "(relative to this file; in the chart: /autosave); none when unset.",
+    )
     archiver: ArchiverConfig = Field(
         default=ArchiverConfig(),
         description="Which PVs the archiver list holds (policies by kind: "
@@ -416,7 +423,13 @@ def _resolve_paths(raw: dict[str, Any], base: Path) -> None:
 
     if isinstance(raw.get("terminal_dirs"), list):
         raw["terminal_dirs"] = [resolve(item) for item in raw["terminal_dirs"]]
-    for key in ("screens_dir", "access_security_file", "chain", "pv_lists_dir"):
+    for key in (
+        "screens_dir",
+        "access_security_file",
+        "chain",
+        "pv_lists_dir",
+        "autosave_dir",
+    ):
         if key in raw:
             raw[key] = resolve(raw[key])
     for item in raw.get("databases") or ():

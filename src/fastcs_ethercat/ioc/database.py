@@ -3,17 +3,27 @@ engineer expects, a site's own databases beside them, and iocInit, which
 serves them on Channel Access (softioc's RSRV) and PV Access (QSRV, the
 pvxs server softioc loads with `enable_pva`).
 
-FastCS's CA transport makes one softioc record per PV. Before the database
-is loaded, with epicsdbbuilder's public record fields, each in record gets:
+FastCS's CA transport makes one softioc record per PV, with the fields of
+its attribute (DESC, EGU, PREC, states, lengths). Before the database is
+loaded, with epicsdbbuilder's public record fields, each in record of an
+attribute is made an ordinary EPICS input record whose value the IOC puts
+(`ioc.dbaccess`, `ioc.fastcs_adapter.ValueRoute`):
 
-- `DISP 0`: softioc disables puts to every field of an in record (DISP 1),
-  so `caput ...:Value.HIHI` was refused; an operator may now set alarm
-  limits, deadbands and DESC (a put to VAL is overwritten by the next
-  processing, as on any input record);
-- `TSE -2`: the record keeps the time softioc's `set()` gives it, the time
-  of the ADS sum read that produced the value;
+- `DTYP "Soft Channel"`, `SCAN "Passive"`, no INP: a put to VAL processes
+  the record in EPICS's own record support (alarm limits and HYST, MDEL and
+  ADEL, SMOO, FLNK, the monitors of CP links), without Python per value;
+- `TSEL "<prefix>:ReadTime.TIME"`: its time is the clock record's
+  (`ReadClock`), which the IOC sets to the time of the ADS sum read before
+  it posts that read's values, so a poll cycle's values share one time;
+- FastCS's own `update()` of the attribute puts the value there too
+  (`fastcs_adapter.follow_updates`);
+- `DISP 0`: an operator may set alarm limits, deadbands and DESC (a put to
+  VAL is overwritten by the next value, as on any input record);
 - `HOPR`/`LOPR` from the datatype's range (FastCS puts the alarm limits
-  there, which scaled values do not have), so meters and bars have a range.
+  there, which scaled values do not have), so meters and bars have a range;
+- state severities (`ZSV`/`OSV` of a bi, `ZRSV`... of an mbbi) from the
+  datatype's table: a set Error bit is MAJOR by record support, and an
+  operator may change it.
 
 Every record also carries its PVI entry (`ioc.pvi`). `serve` does what
 FastCS's own does (softioc's asyncio dispatcher, `builder.LoadDatabase`,
@@ -45,8 +55,12 @@ from fastcs.transports.epics.ca.transport import EpicsCATransport
 from fastcs_ethercat.bounded import read_text_bounded
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.ioc.config import SiteDatabase
-from fastcs_ethercat.ioc.fastcs_adapter import RBV_SUFFIX, ca_name
+from fastcs_ethercat.ioc.datatypes import AlarmBool, AlarmEnum
+from fastcs_ethercat.ioc.dbaccess import database_serves
+from fastcs_ethercat.ioc.fastcs_adapter import RBV_SUFFIX, ca_name, follow_updates
+from fastcs_ethercat.ioc.operator_settings import keep_operator_settings
 from fastcs_ethercat.ioc.pvi import add_pvi_groups
+from fastcs_ethercat.ioc.read_clock import make_clock
 
 if TYPE_CHECKING:
     from fastcs.controllers import ControllerAPI
@@ -57,8 +71,16 @@ _STRING: Final = re.compile(r'"(?:[^"\\]|\\.)*"')
 """A quoted string of a database line."""
 IGNORE_SERVERS: Final = "EPICS_IOC_IGNORE_SERVERS"
 """EPICS base: the servers iocInit does not start (`rsrv`: Channel Access)."""
-DEVICE_TIME: Final = -2
-"""TSE: the record's time is the one its device support sets."""
+SEVERITY_NAMES: Final = ("NO_ALARM", "MINOR", "MAJOR", "INVALID")
+"""menuAlarmSevr, as a record field takes it."""
+MBB_SEVERITY_FIELDS: Final = tuple(
+    f"{prefix}SV"
+    for prefix in (
+        "ZR", "ON", "TW", "TH", "FR", "FV", "SX", "SV",
+        "EI", "NI", "TE", "EL", "TV", "TT", "FT", "FF",
+    )
+)  # fmt: skip
+"""An mbbi's state severities, in state order."""
 
 
 _initialised: asyncio.Future[None] | None = None
@@ -71,6 +93,10 @@ class DatabaseTransport(EpicsCATransport):
     databases loaded after them."""
 
     site_databases: Sequence[SiteDatabase] = ()
+    autosave_dir: Path | None = None
+    """Where softioc's autosave keeps what operators set (`ioc.operator_settings`)."""
+    autosave_name: str = "ioc"
+    """The autosave file's name (the prefix)."""
     ca: bool = True
     """Serve Channel Access (RSRV)."""
     pva: bool = True
@@ -82,11 +108,16 @@ class DatabaseTransport(EpicsCATransport):
         super().connect(controller_apis, loop)
         if self.pva:
             add_pvi_groups(controller_apis)
+        clock = make_clock(controller_apis[0].path[0]).name if controller_apis else ""
         for api in controller_apis:
             for controller_api in api.walk_api():
                 for attribute in controller_api.attributes.values():
                     if isinstance(attribute, AttrR) and attribute.enabled:
-                        _as_an_input_record(attribute)
+                        _as_an_input_record(attribute, clock)
+        if self.autosave_dir is not None:
+            keep_operator_settings(
+                self.autosave_dir, self.autosave_name, controller_apis
+            )
 
     async def serve(self) -> None:
         """Load the database, then the site's, then iocInit (on the loop, as
@@ -104,6 +135,7 @@ class DatabaseTransport(EpicsCATransport):
             if not self.ca:
                 os.environ[IGNORE_SERVERS] = "rsrv"
             softioc.iocInit(dispatcher, enable_pva=self.pva)
+            database_serves()
         except Exception as error:
             done.set_exception(error)
             raise
@@ -117,18 +149,22 @@ def database_transport(
     aliases: Mapping[str, str],
     site_databases: Sequence[SiteDatabase] = (),
     *,
+    autosave_dir: Path | None = None,
+    autosave_name: str = "ioc",
     ca: bool = True,
     pva: bool = True,
 ) -> DatabaseTransport:
     return DatabaseTransport(
         epicsca=EpicsCAOptions(aliases=dict(aliases)),
         site_databases=tuple(site_databases),
+        autosave_dir=autosave_dir,
+        autosave_name=autosave_name,
         ca=ca,
         pva=pva,
     )
 
 
-def _as_an_input_record(attribute: AttrR[Any, Any]) -> None:
+def _as_an_input_record(attribute: AttrR[Any, Any], clock: str) -> None:
     """Give the in record of `attribute` the fields above (before the
     database is loaded)."""
     from epicsdbbuilder import LookupRecord
@@ -140,13 +176,30 @@ def _as_an_input_record(attribute: AttrR[Any, Any]) -> None:
         record: Any = LookupRecord(name)
     except KeyError:  # not made (a name too long for EPICS: FastCS said so)
         return
+    follow_updates(attribute)
+    record.DTYP = "Soft Channel"
+    record.SCAN = "Passive"
+    record.address = None  # INP: none, the IOC puts the value
+    record.PINI = None
+    record.MDEL = None  # EPICS's default (0: every change), not softioc's -1
+    if clock:
+        record.TSEL = f"{clock}.TIME"
     record.DISP = 0
-    record.TSE = DEVICE_TIME
     datatype = attribute.datatype
     ranged = isinstance(datatype, Float | Int)
     if ranged and datatype.min is not None and datatype.max is not None:
         record.LOPR = datatype.min
         record.HOPR = datatype.max
+    if isinstance(datatype, AlarmBool):
+        record.ZSV, record.OSV = (SEVERITY_NAMES[s] for s in datatype.severities)
+    elif isinstance(datatype, AlarmEnum) and len(datatype.members) <= len(
+        MBB_SEVERITY_FIELDS
+    ):
+        for field, severity in zip(
+            MBB_SEVERITY_FIELDS, datatype.severities, strict=False
+        ):
+            if severity:
+                setattr(record, field, SEVERITY_NAMES[severity])
 
 
 def load_site_databases(databases: Iterable[SiteDatabase]) -> None:
@@ -186,11 +239,12 @@ def check_closed(path: Path) -> None:
 
 
 def set_callback_queue_size(entries: int) -> None:
-    """EPICS callback queue entries (before iocInit): every changed record
-    queues one, and the default 2000 overflows on a large rack."""
-    from softioc.imports import callbackSetQueueSize
+    """EPICS callback queue entries (before iocInit): the default 2000
+    overflows when thousands of records queue work at once (CP links, the
+    put completions of a large rack)."""
+    from fastcs_ethercat.ioc.dbaccess import set_callback_queue_size as set_size
 
-    callbackSetQueueSize(entries)
+    set_size(entries)
 
 
 def failure() -> BaseException | None:

@@ -1,113 +1,69 @@
-"""What FastCS 0.14 and softioc 4.7 do not offer yet, through their
-private names: the one module of the IOC that touches them. Each item says
-why, and what upstream change retires it.
+"""Where a FastCS attribute is served, the value it holds, and the private
+names of FastCS and softioc the IOC needs (each with why and what retires it).
 
-- **Updates with a timestamp and an alarm.** `AttrR.update(value)` has no
-  time and no alarm: each transport stamps the value with the time its
-  callback runs. A poll cycle's values were all read by one ADS request and
-  carry that request's time and their channel's alarm. `ValueRoute.post`
-  sets what `update()` sets (`AttrR._value`, `_on_update_events`, an
-  `AttrRW`'s first setpoint sync through `_setpoint_initialised` and
-  `_call_sync_setpoint_callbacks`) and hands the value to the in record
-  through softioc's public `set(value, severity, alarm, timestamp)`, so EPICS
-  record support processes it (alarm limits, deadbands, links) and CA and
-  PVA (QSRV) serve the result. The CA transport's own on-update callback
-  (recognised in `_on_update_callbacks` by its module and name) is left
-  out; any other is called. Retired by FastCS's `Update` (on its main
-  branch): then `attribute.update(Update(...))`.
-- **CA out-record alarms.** softioc stages an out record's alarm only for
-  its next processing, and processing an out record writes to the PLC:
-  `_set_out_record_alarm` does what processing would (NSEV/NSTA through
-  softioc's `_record` view, EPICS's `recGblResetAlarms` and
-  `db_post_events`). Retired by an alarm setter on softioc's out records.
-- **Setpoints after a put.** FastCS's CA put handler stages MAJOR on a failed
-  put and NO_ALARM on a good one; `watch_ca_puts` runs the IOC's own verdict
-  after it, before the put completes (`_ProcessDeviceSupportOut__on_update`,
-  softioc's on-update slot), so `caput -c` sees the IOC's alarm.
-  `sync_setpoint` shows a value on every setpoint PV (FastCS's
-  `_call_sync_setpoint_callbacks`). Retired by a FastCS put verdict hook.
+FastCS's CA transport makes the records of every attribute (`ioc.database`
+turns its input records into ordinary EPICS records whose value the IOC
+puts). This module finds them by the name FastCS gives them and posts to
+them through EPICS's database access (`ioc.dbaccess`): a value into an
+input record, which EPICS processes; an alarm onto an input record (raised,
+then the record processed) or an output record (made current without
+processing, which would write to the PLC); a setpoint's value onto an
+output record (written without processing).
 
-`check_installed()` runs at every IOC start: each package's version must be
-one this was tested with and every private name used here must exist, else
-the IOC stops with one line naming the package and version.
+What FastCS 0.14 does not offer yet, and so the one use of its private
+names: an attribute's value set with the time it was read and an alarm.
+`AttrR.update(value)` has neither (each transport stamps the value with the
+time its callback runs) and costs ~120 µs; `ValueRoute.post` sets what
+`update()` sets for the attribute itself (`AttrR._value`, and the waiters
+of `AttrR._on_update_events`) and puts the value into its record. Retired
+by FastCS's `Update` (on its main branch): `attribute.update(Update(...))`.
+
+softioc 4.7's autosave thread (`ioc.operator_settings`) is not a daemon,
+and is told to stop only by an atexit handler, which Python runs after it
+has joined every such thread: an IOC with autosave would never exit.
+`stop_autosave` tells it (`Autosave._stop()`: it saves once more and ends)
+when serving ends. Retired by softioc stopping the thread before the
+interpreter joins it.
+
+`check_installed()` runs at every IOC start: FastCS must be a version
+pyproject.toml allows and still have those two names, else the IOC stops
+with one line naming the package and version.
 """
 
 from __future__ import annotations
 
-import ctypes
 import enum
-import functools
 import importlib
 import importlib.metadata
-import math
-import sys
-import time
-import types
-from collections.abc import Awaitable, Callable
-from dataclasses import dataclass
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, Final, NamedTuple
 
 from fastcs_ethercat.errors import UserError
+from fastcs_ethercat.ioc import dbaccess
 
 if TYPE_CHECKING:
     from fastcs.attributes import Attribute, AttrR
 
-TESTED: Final = {
-    "fastcs": ((0, 14, 4), (0, 15)),
-    "softioc": ((4, 7), (4, 8)),
-}
-"""Package -> (lowest tested version, first version not tested), as in
-pyproject.toml: the two whose private names this module uses."""
-
-
-# -- the update FastCS's main branch has -------------------------------------
+SUPPORTED: Final = {"fastcs": ((0, 14), (0, 15))}
+"""Package -> (lowest version, first version not supported), as in
+pyproject.toml: the package whose private names this module uses."""
+RBV_SUFFIX: Final = "_RBV"
+MBB_STATES: Final = 16
+"""An enum of up to this many members is an mbbi/mbbo, else a text record
+(FastCS's rule)."""
+TEXT_LENGTH: Final = 256
+"""FastCS's text records hold this many characters (when the datatype says
+no length), and a NUL."""
 
 
 class Update(NamedTuple):
-    """A value with the time it was read and its alarm (EPICS numbers).
-
-    A tuple: one is made for every published value, so it must be cheap.
-    """
+    """A value with the time it was read and its alarm (EPICS numbers)."""
 
     value: Any
     timestamp: float
     severity: int = 0
     status: int = 0
     message: str = ""
-
-
-# -- where an attribute is served --------------------------------------------
-
-
-@dataclass(frozen=True)
-class _Callback:
-    """One of FastCS's CA transport callbacks, recognised by its name."""
-
-    module: str
-    outer: str
-    inner: str
-
-    @property
-    def qualname(self) -> str:
-        return f"{self.outer}.<locals>.{self.inner}"
-
-    def made(self, callback: Callable[..., Any]) -> bool:
-        """Whether FastCS made `callback` here."""
-        return (
-            getattr(callback, "__module__", None) == self.module
-            and getattr(callback, "__qualname__", None) == self.qualname
-        )
-
-
-_CA_MODULE: Final = "fastcs.transports.epics.ca.ioc"
-CA_READ: Final = _Callback(_CA_MODULE, "_create_and_link_read_pv", "async_record_set")
-"""The CA transport's on-update callback: `ValueRoute` sets the record
-itself (with time and alarm), so this one is not called."""
-RBV_SUFFIX: Final = "_RBV"
-_ON_UPDATE: Final = "_ProcessDeviceSupportOut__on_update"
-"""Where a softioc out record keeps its on-update callback."""
-_WATCHED: Final = "_fastcs_ethercat_watched"
-"""Set on an out record whose puts `watch_ca_puts` follows."""
 
 
 class Parts(enum.IntFlag):
@@ -128,273 +84,191 @@ def ca_name(attribute: Attribute[Any, Any]) -> str:
     return f"{pv_prefix_from_path(attribute.path)}:{snake_to_pascal(attribute.name)}"
 
 
-def _ca_names(attribute: Attribute[Any, Any], *, reads: bool) -> list[str]:
-    """Records of `attribute`: the out record, and the in record if `reads`."""
+def record_names(attribute: Attribute[Any, Any]) -> tuple[str, str]:
+    """(in record, out record) of `attribute`, "" where it has none."""
     from fastcs.attributes import AttrR, AttrW
 
-    name = ca_name(attribute) if attribute.path else ""
-    if not name:
-        return []
-    found = [name] if isinstance(attribute, AttrW) else []
-    if reads and isinstance(attribute, AttrR):
-        found.append(name + RBV_SUFFIX if isinstance(attribute, AttrW) else name)
-    return found
+    if not attribute.path:
+        return "", ""
+    name = ca_name(attribute)
+    writes = isinstance(attribute, AttrW)
+    reads = isinstance(attribute, AttrR)
+    return (
+        (name + RBV_SUFFIX if writes else name) if reads else "",
+        name if writes else "",
+    )
 
 
 def database_records(attribute: Attribute[Any, Any], *, reads: bool) -> list[Any]:
     """The database records (epicsdbbuilder) of `attribute`'s out record, and
-    in record if `reads`, to set fields on between the transport's connect
-    and iocInit."""
+    in record if `reads`, to set fields on before the database is loaded."""
     from epicsdbbuilder import LookupRecord
 
+    in_name, out_name = record_names(attribute)
     found = []
-    for name in _ca_names(attribute, reads=reads):
-        try:
-            found.append(LookupRecord(name))
-        except KeyError:
-            continue
+    for name in (out_name, in_name if reads else ""):
+        if name:
+            try:
+                found.append(LookupRecord(name))
+            except KeyError:  # not made (a name too long for EPICS)
+                continue
     return found
 
 
-def _ca_record(name: str) -> Any:
-    """softioc's record `name` (its device support), None without one."""
-    if "softioc.device_core" not in sys.modules:  # no database yet
-        return None
-    from softioc.device_core import LookupRecord
+def value_kind(datatype: Any) -> tuple[str, int, Callable[[Any], Any] | None]:
+    """How a value of `datatype` goes into its record: (`dbaccess` kind,
+    length, conversion or None), as FastCS's records of that datatype hold
+    it."""
+    from fastcs.datatypes import Bool, Enum, Float, Int, String, Waveform
 
-    try:
-        return LookupRecord(name)
-    except KeyError:
-        return None
+    if isinstance(datatype, Float):
+        return "double", 0, None
+    if isinstance(datatype, Bool):
+        return "enum", 0, int
+    if isinstance(datatype, Int):
+        return "long", 0, None
+    if isinstance(datatype, Enum):
+        if len(datatype.members) <= MBB_STATES:
+            return "enum", 0, datatype.index_of
+        return "text", TEXT_LENGTH + 1, lambda member: member.name
+    if isinstance(datatype, String):
+        return "text", (datatype.length or TEXT_LENGTH) + 1, None
+    if isinstance(datatype, Waveform):
+        return "array", int(datatype.shape[0]), None
+    raise TypeError(f"no record holds a {type(datatype).__name__}")
 
 
-@dataclass(frozen=True)
-class Endpoints:
-    """The records serving one attribute (None: not made), on CA and PVA.
+class AttributeRecords:
+    """The records serving one attribute, once the database serves."""
 
-    `ca_in`/`ca_out` are softioc device supports; `others` every on-update
-    callback but the CA transport's own (anyone's), which gets each value
-    as from `update()`.
-    """
+    __slots__ = ("attribute", "kind", "length", "readback", "setpoint", "to_record")
 
-    attribute: Attribute[Any, Any]
-    ca_in: Any = None
-    ca_out: Any = None
-    others: tuple[Callable[[Any], Any], ...] = ()
-
-    def __bool__(self) -> bool:
-        return self.ca_in is not None or self.ca_out is not None
+    def __init__(self, attribute: Attribute[Any, Any]) -> None:
+        self.attribute = attribute
+        self.kind, self.length, self.to_record = value_kind(attribute.datatype)
+        in_name, out_name = record_names(attribute)
+        self.readback = _record(in_name)
+        """The in record (None: not made)."""
+        self.setpoint = _record(out_name)
+        """The out record of an output (None: not made, or not an output)."""
 
     def publish_alarm(
-        self, severity: int, status: int, parts: Parts = Parts.ALL
+        self, severity: int, status: int, message: str = "", parts: Parts = Parts.ALL
     ) -> int:
         """Give the records of `parts` this alarm, value unchanged; how many
-        were reached."""
+        were reached. The in record is processed with it (its own limits
+        join it, its links see it), the out record is not."""
         reached = 0
-        if self.ca_in is not None and Parts.READBACK in parts:
-            # the time too: the record is on device time
-            self.ca_in.set_alarm(severity, status, timestamp=time.time())
+        if self.readback is not None and Parts.READBACK in parts:
+            with self.readback.locked():
+                if severity:
+                    self.readback.raise_alarm(severity, status, message)
+                self.readback.process()
             reached += 1
-        if self.ca_out is not None and Parts.SETPOINT in parts:
-            _set_out_record_alarm(self.ca_out, severity, status)
+        if self.setpoint is not None and Parts.SETPOINT in parts:
+            self.setpoint.show_alarm(severity, status, message)
             reached += 1
         return reached
 
-
-def endpoints_of(attribute: Attribute[Any, Any]) -> Endpoints:
-    """Where `attribute` is served (once the transport has connected)."""
-    from fastcs.attributes import AttrR, AttrW
-
-    read_callbacks: list[Callable[..., Any]] = []
-    if isinstance(attribute, AttrR):
-        read_callbacks = [cb for cb, _ in attribute._on_update_callbacks or ()]  # pyright: ignore[reportPrivateUsage]
-    names = _ca_names(attribute, reads=True)
-    ca_out = _ca_record(names[0]) if names and isinstance(attribute, AttrW) else None
-    ca_in = _ca_record(names[-1]) if names and isinstance(attribute, AttrR) else None
-    others = tuple(cb for cb in read_callbacks if not CA_READ.made(cb))
-    return Endpoints(attribute, ca_in=ca_in, ca_out=ca_out, others=others)
+    def show_setpoint(self, value: Any) -> None:
+        """Show `value` on the out record without processing it."""
+        if self.setpoint is not None:
+            convert = self.to_record
+            shown = convert(value) if convert is not None else value
+            self.setpoint.show_value(self.kind, shown, self.length)
 
 
-# -- publishing values ---------------------------------------------------------
+_records: dict[int, AttributeRecords] = {}
+"""An attribute's records by its id (attributes live as long as the IOC)."""
 
-_INVALID: Final = 3
-_UDF: Final = 17
+
+def records_of(attribute: Attribute[Any, Any]) -> AttributeRecords:
+    """The records of `attribute` (found once)."""
+    found = _records.get(id(attribute))
+    if found is None or found.attribute is not attribute:
+        found = _records[id(attribute)] = AttributeRecords(attribute)
+    return found
+
+
+def _record(name: str) -> dbaccess.Record | None:
+    if not name:
+        return None
+    try:
+        return dbaccess.Record(name)
+    except dbaccess.DbAccessError:
+        return None
 
 
 class ValueRoute:
-    """Publishes `Update`s of one attribute, once the database serves.
+    """Posts `Update`s of one attribute to its in record, once the database
+    serves: one put, which EPICS processes (alarm limits, deadbands, links,
+    CA and PVA monitors). The time is the clock's (`ioc.read_clock`), which
+    the caller set; an update's severity is raised for that processing."""
 
-    `post` hands the value to the in record (softioc's `set`: EPICS processes
-    the record, its alarm limits and deadbands apply, CA and PVA monitors
-    get it) and returns what must still be awaited: the first setpoint sync
-    of an `AttrRW`, and on-update callbacks of anyone else, as `update()`
-    would call them; None almost always.
-    """
+    __slots__ = ("attribute", "records", "to_record", "write")
 
     def __init__(self, attribute: AttrR[Any, Any]) -> None:
-        from fastcs.attributes import AttrRW
-        from fastcs.datatypes import Float
-        from fastcs.transports.epics.ca.util import cast_to_epics_type
-
         self.attribute = attribute
-        self.endpoints = endpoints_of(attribute)
-        self._writable = isinstance(attribute, AttrRW)
-        self._to_epics = cast_to_epics_type
-        self._is_float = isinstance(attribute.datatype, Float)
-        device = self.endpoints.ca_in
-        self._set: Callable[..., None] | None = (
-            device.set if device is not None else None
+        self.records = records_of(attribute)
+        self.to_record = self.records.to_record
+        readback = self.records.readback
+        self.write: Callable[[Any], None] | None = (
+            readback.writer(self.records.kind, self.records.length)
+            if readback is not None
+            else None
         )
 
-    def post(self, update: Update) -> Awaitable[None] | None:
-        """What `attribute.update(update)` will do: value, record, setpoint."""
+    def post(self, update: Update) -> None:
+        """What `attribute.update(update)` will do: the value, then the record."""
         attribute, value = self.attribute, update.value
         attribute._value = value  # pyright: ignore[reportPrivateUsage]
         events = attribute._on_update_events  # pyright: ignore[reportPrivateUsage]
         if events:
             attribute._on_update_events = {e for e in events if not e.set(value)}  # pyright: ignore[reportPrivateUsage]
-        if self._set is not None:
-            severity, status = update.severity, update.status
-            if self._is_float and math.isnan(value):  # as an ai record reads NaN
-                severity, status = _INVALID, _UDF
-            self._set(
-                self._to_epics(attribute.datatype, value),
-                severity,
-                status,
-                update.timestamp,
-            )
-        if self.endpoints.others or (
-            self._writable and not attribute._setpoint_initialised  # pyright: ignore[reportAttributeAccessIssue]
-        ):
-            return self._callbacks(value)
-        return None
+        self.put(update)
 
-    async def _callbacks(self, value: Any) -> None:
-        attribute: Any = self.attribute
-        if self._writable and not attribute._setpoint_initialised:
-            await attribute._call_sync_setpoint_callbacks(value)
-            attribute._setpoint_initialised = True
-        for callback in self.endpoints.others:
-            await callback(value)
-
-    async def publish(self, update: Update) -> None:
-        """`post` one update and await what it leaves."""
-        pending = self.post(update)
-        if pending is not None:
-            await pending
-
-
-# -- softioc -------------------------------------------------------------------
-
-
-def _set_out_record_alarm(record: Any, severity: int, status: int) -> None:
-    """Give a softioc out record this alarm now, value and device untouched.
-
-    Stage the alarm as softioc does (kept for the record's next processing),
-    then, under the record's lock, do what processing would: stage it in
-    NSEV/NSTA, let EPICS move it to SEVR/STAT (recGblResetAlarms, which posts
-    those fields) and post VAL with DBE_ALARM, so monitors see it. While a
-    put is processing the record (PACT), only stage it: the put's completion
-    moves it to SEVR/STAT (resetting now would let the completion clear it).
-    """
-    record.set(record.get(), process=False, severity=severity, alarm=status)
-    fields = getattr(record, "_record", None)
-    if fields is None:  # before iocInit: softioc applies the staged alarm
-        return
-    functions = _database_functions()
-    base: int = fields.record.value
-    value_address = base + fields.fields["VAL"][0]
-    functions.lock(base)
-    try:
-        fields.NSEV = severity
-        fields.NSTA = status
-        if fields.PACT:
+    def put(self, update: Update) -> None:
+        """The record alone: `update`'s value, its severity raised for it."""
+        write = self.write
+        if write is None:
             return
-        fields.TIME = time.time()
-        changed = functions.reset_alarms(base)
-        if changed:
-            functions.post_events(base, value_address, changed)
-    finally:
-        functions.unlock(base)
+        convert = self.to_record
+        value = update.value
+        shown = convert(value) if convert is not None else value
+        if update.severity:
+            readback: Any = self.records.readback
+            with readback.locked():
+                readback.raise_alarm(update.severity, update.status, update.message)
+                write(shown)
+        else:
+            write(shown)
 
 
-@dataclass(frozen=True)
-class _DatabaseFunctions:
-    lock: Any
-    unlock: Any
-    reset_alarms: Any
-    post_events: Any
+def follow_updates(attribute: AttrR[Any, Any]) -> None:
+    """Put every value FastCS's own `update()` gives `attribute` into its
+    record too (a FastCS on-update callback), at the time it is given: the
+    IOC posts its values through `ValueRoute`, but an attribute may also be
+    updated the FastCS way (a put to an output without IO, say)."""
+    from fastcs_ethercat.ioc.read_clock import set_clock
+
+    route: list[ValueRoute] = []
+
+    async def to_record(value: Any) -> None:
+        if not dbaccess.is_serving():
+            return  # before iocInit: posted when the database serves
+        if not route:
+            route.append(ValueRoute(attribute))
+        set_clock()
+        route[0].put(Update(value, 0.0))
+
+    attribute.add_on_update_callback(to_record)
 
 
-@functools.cache
-def _database_functions() -> _DatabaseFunctions:
-    """EPICS database calls, loaded only once a CA IOC (softioc) runs.
+def stop_autosave() -> None:
+    """Let softioc's autosave thread end (see above); harmless without one."""
+    from softioc.autosave import Autosave
 
-    Locking waits without the GIL (a record being processed may be waiting
-    for it); the calls made under the lock keep it (no other thread gets a
-    turn in between).
-    """
-    from epicscorelibs.ioc import dbCore
-
-    keeping_gil = ctypes.PyDLL(dbCore._name)
-    pointer = (ctypes.c_void_p,)
-    for name in ("dbScanLock", "dbScanUnlock"):
-        getattr(dbCore, name).argtypes = pointer
-        getattr(dbCore, name).restype = None
-    reset_alarms = keeping_gil.recGblResetAlarms
-    reset_alarms.argtypes = pointer
-    reset_alarms.restype = ctypes.c_ushort
-    post_events = keeping_gil.db_post_events
-    post_events.argtypes = (ctypes.c_void_p, ctypes.c_void_p, ctypes.c_uint)
-    post_events.restype = ctypes.c_int
-    return _DatabaseFunctions(
-        lock=dbCore.dbScanLock,
-        unlock=dbCore.dbScanUnlock,
-        reset_alarms=reset_alarms,
-        post_events=post_events,
-    )
-
-
-def watch_ca_puts(
-    attribute: Attribute[Any, Any], after: Callable[[Attribute[Any, Any]], None]
-) -> bool:
-    """Call `after(attribute)` when FastCS has handled a CA put to the
-    attribute's out record (and staged its own alarm), before the put
-    completes for the client. Once per record; False without one."""
-    record = endpoints_of(attribute).ca_out
-    if record is None:
-        return False
-    if getattr(record, _WATCHED, False):
-        return True
-    handler = getattr(record, _ON_UPDATE)
-
-    async def on_update(value: Any) -> None:
-        try:
-            await handler(value)
-        finally:
-            after(attribute)
-
-    setattr(record, _ON_UPDATE, on_update)
-    setattr(record, _WATCHED, True)
-    return True
-
-
-def take_over_setpoints(attribute: Attribute[Any, Any]) -> None:
-    """The IOC shows this output's setpoints itself from now on
-    (`ioc.setpoints`): FastCS's own sync at the first value is skipped."""
-    from fastcs.attributes import AttrRW
-
-    if isinstance(attribute, AttrRW):
-        attribute._setpoint_initialised = True  # pyright: ignore[reportAttributeAccessIssue]
-
-
-async def sync_setpoint(attribute: Attribute[Any, Any], value: Any) -> None:
-    """Show `value` on the setpoint of `attribute` (its out record, without
-    processing), as FastCS does at start."""
-    from fastcs.attributes import AttrW
-
-    if isinstance(attribute, AttrW):
-        await attribute._call_sync_setpoint_callbacks(value)  # pyright: ignore[reportPrivateUsage]
+    Autosave._stop()  # pyright: ignore[reportPrivateUsage]
 
 
 # -- the check at start --------------------------------------------------------
@@ -411,73 +285,45 @@ def _version(text: str) -> tuple[int, ...]:
 
 
 def _range(package: str) -> str:
-    low, high = TESTED[package]
+    low, high = SUPPORTED[package]
     return f">={'.'.join(map(str, low))},<{'.'.join(map(str, high))}"
 
 
 def version_problems() -> list[str]:
-    """Installed versions outside the tested ranges, one text each."""
+    """Installed versions outside the supported ranges, one text each."""
     problems: list[str] = []
-    for package, (low, high) in TESTED.items():
+    for package, (low, high) in SUPPORTED.items():
         try:
             installed = importlib.metadata.version(package)
         except importlib.metadata.PackageNotFoundError:
-            problems.append(f"{package} is not installed (tested {_range(package)})")
+            problems.append(f"{package} is not installed ({_range(package)})")
             continue
         if not low <= _version(installed) < high:
             problems.append(
-                f"{package} {installed} is installed, fastcs-ethercat is tested "
-                f"with {package}{_range(package)}"
+                f"{package} {installed} is installed, fastcs-ethercat supports "
+                f"{package}{_range(package)}"
             )
     return problems
 
 
 def shape_problems() -> list[str]:
-    """Private names used above that the installed packages no longer have."""
-    problems: list[str] = []
-    outer = getattr(importlib.import_module(CA_READ.module), CA_READ.outer, None)
-    if not isinstance(outer, types.FunctionType) or not any(
-        isinstance(const, types.CodeType) and const.co_name == CA_READ.inner
-        for const in outer.__code__.co_consts
-    ):
-        problems.append(f"fastcs: {CA_READ.module}.{CA_READ.qualname} is gone")
-    from fastcs.attributes import AttrR, AttrRW, AttrW
+    """Private names used above that the installed FastCS no longer has."""
+    from fastcs.attributes import AttrR
     from fastcs.datatypes import Int
 
-    fields: dict[type[Any], tuple[str, ...]] = {
-        AttrR: ("_on_update_callbacks", "_on_update_events", "_value"),
-        AttrW: ("_sync_setpoint_callbacks", "_call_sync_setpoint_callbacks"),
-        AttrRW: ("_setpoint_initialised",),
-    }
-    for kind, names in fields.items():
-        sample = kind(Int())
-        problems += [
-            f"fastcs: {kind.__name__}.{name} is gone"
-            for name in names
-            if not hasattr(sample, name)
-        ]
-    return problems + _softioc_problems()
-
-
-def _softioc_problems() -> list[str]:
-    from softioc import device_core, imports
-    from softioc.device import ProcessDeviceSupportOut
-
-    problems: list[str] = []
-    if not callable(getattr(device_core, "LookupRecord", None)):
-        problems.append("softioc: device_core.LookupRecord is gone")
-    if _ON_UPDATE not in ProcessDeviceSupportOut._process.__code__.co_names:
-        problems.append("softioc: out records no longer call __on_update")
-    if "_record" not in device_core.DeviceSupportCore._init_record.__code__.co_names:  # pyright: ignore[reportPrivateUsage]
-        problems.append("softioc: records no longer keep their fields in _record")
-    if not hasattr(imports, "callbackSetQueueSize"):
-        problems.append("softioc: imports.callbackSetQueueSize is gone")
-    return problems
+    sample = AttrR(Int())
+    return [
+        f"fastcs: AttrR.{name} is gone"
+        for name in ("_value", "_on_update_events")
+        if not hasattr(sample, name)
+    ]
 
 
 def import_ioc_modules() -> None:
     """Import FastCS with its CA transport (once), EPICS without
     real-time threads (`scheduling`)."""
+    import sys
+
     if not all(name in sys.modules for name in IOC_MODULES):
         from fastcs_ethercat.ioc.scheduling import give_up_realtime_scheduling
 
@@ -494,8 +340,8 @@ IOC_MODULES: Final = (
 
 
 def check_installed() -> None:
-    """Stop (`UserError`, one line) unless FastCS and softioc are versions
-    this was tested with and have the private names it uses."""
+    """Stop (`UserError`, one line) unless FastCS is a supported version
+    with the private names this module uses."""
     problems = version_problems()
     if not problems:
         import_ioc_modules()

@@ -213,14 +213,14 @@ class Health:
         return next(iter(reasons.values())).alarm() if reasons else NO_ALARM
 
     def show_setpoint(self, attribute: Attribute[Any, Any]) -> None:
-        """Publish `setpoint_alarm` on the setpoint PVs (after a CA put, before
-        it completes for the client: see `fastcs_adapter.watch_ca_puts`)."""
+        """Publish `setpoint_alarm` on the setpoint PVs."""
         self._publish_state(attribute, self.setpoint_alarm(attribute), Parts.SETPOINT)
 
     def show_setpoint_soon(self, attribute: Attribute[Any, Any]) -> None:
-        """`show_setpoint` once the put under way has been answered: FastCS's
-        PVA handler posts its own alarm (MAJOR) after the put fails, and ours
-        goes after."""
+        """`show_setpoint` once the put under way has been handled: FastCS's
+        put handler stages its own verdict on the record (MAJOR/WRITE or no
+        alarm) after the write path returns, and ours goes after it (an
+        INVALID raised while the put completes is the one the client sees)."""
         asyncio.get_running_loop().call_soon(self.show_setpoint, attribute)
 
     async def _drop(self, attribute: Attribute[Any, Any], gone: Iterable[str]) -> None:

@@ -57,13 +57,15 @@ class LaunchOptions:
     READ_ONLY (CA clients see "no write")."""
     site_databases: Sequence[SiteDatabase] = ()
     """A site's .db files, loaded after the IOC's own records."""
+    autosave_dir: Path | None = None
+    """Where the operators' settings are kept (`ioc.operator_settings`)."""
 
     def __post_init__(self) -> None:
         if not (self.ca or self.pva):
             raise ValueError("serve at least one of CA and PVA")
 
 
-def build_transports(options: LaunchOptions) -> list[Transport]:
+def build_transports(options: LaunchOptions, prefix: str = "ioc") -> list[Transport]:
     """The FastCS transports for `options` (imports softioc only for CA)."""
     from fastcs_ethercat.ioc.database import database_transport
 
@@ -71,6 +73,8 @@ def build_transports(options: LaunchOptions) -> list[Transport]:
         database_transport(
             options.ca_aliases,
             options.site_databases,
+            autosave_dir=options.autosave_dir,
+            autosave_name=prefix,
             ca=options.ca,
             pva=options.pva,
         )
@@ -111,7 +115,7 @@ def build_fastcs(
 
     set_callback_queue_size(options.callback_queue_size)
     announce = _Announce(prefix, on_ready, on_built, on_pvs_built)
-    transports = [*build_transports(options), announce]
+    transports = [*build_transports(options, prefix), announce]
     return FastCS(root, transports, loop)
 
 

@@ -1,21 +1,23 @@
-"""Post polled values to their PVs, every value of one poll cycle at one time.
+"""Post values to their PVs, every value of one poll cycle at one time.
 
-A poll cycle's values were all read by one ADS request, so they all carry
-that request's time, and only values that changed are posted. A cycle's
-values are posted together (`publish_batch`). The posting itself
-(`Update(value, timestamp)` to the CA record, which EPICS processes, and to
-the PVA PV) is `fastcs_adapter`'s until FastCS releases its own `Update`.
+The one path of every value the IOC serves: a poll cycle's changed values,
+and the IOC's own (diagnostics, statistics, CoE reads), each posted with
+the time it was read. The clock (`ioc.read_clock`) is set to that time,
+then each value is put into its record (`fastcs_adapter.ValueRoute`), which
+EPICS processes: its alarm limits, deadbands and links, the monitors of CA
+and PVA clients. Only values that changed are posted.
 
 Alarms are not sticky here either: a published value carries its own alarm,
-NO_ALARM unless its datatype makes it an alarm state (a set Error bit: the
-severity from the datatype's table, status STATE) or its channel's status
-bits are in alarm (`ioc.channel_alarms`); see `ioc.alarms`, `ioc.health`.
+the one record support gives it (its limits, a bi's OSV, UDF for NaN),
+raised by its datatype's table where its record has no such field (a bit
+field's `AlarmInt`) and by its channel's status bits when they are in alarm
+(`ioc.channel_alarms`); see `ioc.alarms`, `ioc.health`.
 """
 
 from __future__ import annotations
 
 import time
-from collections.abc import Awaitable, Callable, Iterable
+from collections.abc import Callable, Iterable
 from typing import Any, Final, NamedTuple
 
 from fastcs.attributes import AttrR
@@ -24,9 +26,10 @@ from fastcs_ethercat.collector import freeze_new, settle_garbage_collector
 from fastcs_ethercat.ioc import alarms
 from fastcs_ethercat.ioc.alarms import AlarmState, Severity, state_alarm
 from fastcs_ethercat.ioc.channel_alarms import ChannelAlarms
-from fastcs_ethercat.ioc.datatypes import severity_table
+from fastcs_ethercat.ioc.datatypes import AlarmInt, severity_table
 from fastcs_ethercat.ioc.deadband import Deadbands
 from fastcs_ethercat.ioc.fastcs_adapter import Update, ValueRoute
+from fastcs_ethercat.ioc.read_clock import set_clock
 
 FREEZE_AFTER_ROUTES: Final = 100
 """A batch that made this many routes (a first cycle) freezes the heap again."""
@@ -44,8 +47,9 @@ class Published(NamedTuple):
 
 _Route = tuple[ValueRoute, Callable[[Any], Any], Callable[[Any, Any], bool], float, Any]
 """An attribute's route, its datatype's validate and equal, its deadband (0:
-none) and its datatype's severity table (None: no alarms): looked up once,
-not per value (FastCS's `datatype` is a property)."""
+none) and the severity table the IOC raises for its value (None: its record
+gives it, or it has none): looked up once, not per value (FastCS's
+`datatype` is a property)."""
 
 
 class _Batch:
@@ -53,11 +57,12 @@ class _Batch:
 
     def __init__(self, stamp: float) -> None:
         self.stamp = stamp
+        self.clock_set = False
+        """The clock holds `stamp` (set before the first value posted)."""
         self.posted = 0
         self.made = 0
         """Routes made (not prepared ahead)."""
         self.failures: list[Failure] = []
-        self.waiting: list[tuple[AttrR[Any, Any], Awaitable[None]]] = []
 
 
 class Publisher:
@@ -85,6 +90,8 @@ class Publisher:
         """A channel value's id -> the channel severity it was last posted with."""
         self._prepared: dict[int, _Route] = {}
         """Routes made ahead (`prepare`), taken at each attribute's first value."""
+        self._first: set[int] = set()
+        """Attributes posted even if equal (their current value at `start`)."""
 
     def prepare(self, attributes: Iterable[AttrR[Any, Any]]) -> None:
         """Make the routes of `attributes` now (once their PVs exist, before
@@ -97,9 +104,15 @@ class Publisher:
                 prepared[id(attribute)] = self._route(attribute)
         freeze_new()  # routes live as long as the IOC
 
-    def start(self) -> None:
-        """The transports serve: post straight to their PVs from now on."""
+    async def start(self, own: Iterable[AttrR[Any, Any]] = ()) -> None:
+        """The database serves: post straight to its records from now on,
+        first the current values of `own` (attributes whose value the IOC
+        set before, not read from the target)."""
         self.started = True
+        now = time.time()
+        initial = [(a, a.get()) for a in own if a.get() is not None]
+        self._first.update(id(attribute) for attribute, _ in initial)
+        await self.publish_batch(initial, now)
         settle_garbage_collector()
 
     async def publish(
@@ -144,11 +157,6 @@ class Publisher:
         if batch.made >= FREEZE_AFTER_ROUTES:
             freeze_new()  # routes live as long as the IOC
         self.posted += batch.posted
-        for attribute, pending in batch.waiting:
-            try:
-                await pending
-            except Exception as error:
-                batch.failures.append((attribute, error))
         return Published(batch.posted, batch.failures)
 
     def value_alarm(self, attribute: AttrR[Any, Any]) -> AlarmState:
@@ -178,9 +186,10 @@ class Publisher:
             unchanged_alarm = carried is None or carried == self._carried.get(
                 id(attribute), 0
             )
-            if entry is None:  # first value: posted even if equal
+            if entry is None or id(attribute) in self._first:  # posted even if equal
+                self._first.discard(id(attribute))
                 validated = attribute.datatype.validate(value)
-                entry = self._prepared.pop(id(attribute), None)
+                entry = entry or self._prepared.pop(id(attribute), None)
                 if entry is None:
                     entry = self._route(attribute)
                     batch.made += 1
@@ -199,17 +208,17 @@ class Publisher:
             if carried is not None:
                 self._carried[id(attribute)] = carried
                 severity = max(severity, carried)
+            if not batch.clock_set:
+                set_clock(batch.stamp)
+                batch.clock_set = True
             if severity:  # a state, its own or its channel's: its alarm goes with it
-                update = Update(validated, batch.stamp, *state_alarm(severity))
+                route.post(Update(validated, batch.stamp, *state_alarm(severity)))
             else:
-                update = Update(validated, batch.stamp)
-            pending = route.post(update)
+                route.post(Update(validated, batch.stamp))
         except Exception as error:
             batch.failures.append((attribute, error))
             return False
         batch.posted += 1
-        if pending is not None:
-            batch.waiting.append((attribute, pending))
         return True
 
     def _route(self, attribute: AttrR[Any, Any]) -> _Route:
@@ -220,7 +229,7 @@ class Publisher:
             datatype.validate,
             datatype.equal,
             self.deadbands.of_attribute(attribute),
-            severity_table(datatype),
+            severity_table(datatype) if isinstance(datatype, AlarmInt) else None,
         )
 
     async def _update_each(

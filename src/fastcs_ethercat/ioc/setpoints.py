@@ -33,8 +33,8 @@ from typing import Any, Final
 
 from fastcs.attributes import AttrR
 
-from fastcs_ethercat.ioc import fastcs_adapter
 from fastcs_ethercat.ioc.alarms import Status
+from fastcs_ethercat.ioc.fastcs_adapter import records_of
 from fastcs_ethercat.ioc.health import Health
 
 logger = logging.getLogger(__name__)
@@ -45,10 +45,11 @@ WAITING: Final = "waiting for the value the PLC holds"
 class Setpoints:
     """The setpoints of one master's outputs.
 
-    What a setpoint shows is decided at once, before its value is shown
-    (FastCS's setpoint callbacks are awaited): a resync's `follow` or a
-    readback that lands meanwhile sees the decision, so a refused write
-    stays refused; its alarm is shown after the value.
+    What a setpoint shows is decided at once, before its value is shown: a
+    resync's `follow` or a readback that lands meanwhile sees the decision,
+    so a refused write stays refused; its alarm is shown after the value,
+    once the put under way (if any) has been handled by FastCS, whose own
+    verdict on the record is then raised to the IOC's.
     """
 
     def __init__(self, health: Health) -> None:
@@ -58,8 +59,6 @@ class Setpoints:
         """Take over what these outputs' setpoints show from now (once their
         PVs are served): each waits for the PLC's value."""
         for attribute in attributes:
-            fastcs_adapter.watch_ca_puts(attribute, self.health.show_setpoint)
-            fastcs_adapter.take_over_setpoints(attribute)
             status = self.health.setpoint_status(attribute)
             if status in (Status.WRITE, Status.TIMEOUT):
                 continue  # until a later write succeeds, or the readback decides
@@ -100,5 +99,5 @@ class Setpoints:
             self.health.setpoint_fine(attribute)
         else:
             self.health.setpoint_problem(attribute, problem, why)
-        await fastcs_adapter.sync_setpoint(attribute, value)
+        records_of(attribute).show_setpoint(value)
         self.health.show_setpoint_soon(attribute)

@@ -67,7 +67,6 @@ from fastcs_ethercat.ioc.attributes import (
     from_device,
 )
 from fastcs_ethercat.ioc.connection import Connection
-from fastcs_ethercat.ioc.controllers.diagnostics import update_if_changed
 from fastcs_ethercat.ioc.controllers.terminal import (
     AL_STATE_SEVERITIES,
     AlStateView,
@@ -687,7 +686,7 @@ class MasterController(Controller):
         await fresh(a["AcyclicFrames"], frames.acyclic_sent)
         await fresh(a["AcyclicLost"], frames.acyclic_lost)
         await fresh(a["LostFrames"], frames.cyclic_lost + frames.acyclic_lost)
-        await update_if_changed(a["DiagErrors"], min(self.failures, 2**31 - 1))
+        await self.health.post(a["DiagErrors"], min(self.failures, 2**31 - 1))
         for address, terminal in self.terminals.items():
             position = self.terminal_positions.get(address, -1)
             state = (

@@ -34,7 +34,6 @@ from fastcs_ethercat.ioc.boot import PlanSource
 from fastcs_ethercat.ioc.chains import remember
 from fastcs_ethercat.ioc.config import IocConfig
 from fastcs_ethercat.ioc.connection import Connection
-from fastcs_ethercat.ioc.controllers.diagnostics import update_if_changed
 from fastcs_ethercat.ioc.controllers.master import MasterController
 from fastcs_ethercat.ioc.controllers.terminal import COE_READ, TerminalController
 from fastcs_ethercat.ioc.controllers.tree import (
@@ -302,6 +301,24 @@ class RootController(Controller):
         """Every attribute whose value comes from the target (not the IOC)."""
         return [a for master in self.masters for a in master.target_attributes()]
 
+    def own_attributes(self) -> list[AttrR[Any, Any]]:
+        """Every attribute whose value the IOC sets itself (statistics,
+        diagnostics, identities): neither read from the target's process
+        image nor a CoE object."""
+        elsewhere = {id(a) for a in self.target_attributes()}
+        elsewhere.update(id(a) for t in self.terminals() for a in t.coe_attributes)
+        found: list[AttrR[Any, Any]] = []
+        controllers: list[Any] = [self]
+        while controllers:
+            controller = controllers.pop()
+            controllers.extend(controller.sub_controllers.values())
+            found += [
+                a
+                for a in controller.attributes.values()
+                if isinstance(a, AttrR) and id(a) not in elsewhere
+            ]
+        return found
+
     def pvs(self) -> list[PvEntry]:
         """Every PV the tree serves (CA names), sorted by name."""
         return pv_entries(self)
@@ -342,10 +359,11 @@ class RootController(Controller):
     # -- serving -------------------------------------------------------------------
 
     async def prepare(self) -> None:
-        """Every PV exists, none serves yet: where each value from the target
-        will go is worked out now, not at its first poll, a slice at a time
-        (the loop keeps its turns). Never raises: what fails here is done at
-        the first value."""
+        """The database serves (iocInit has returned): where each value from
+        the target will go is worked out now, not at its first poll, a slice
+        at a time (the loop keeps its turns); then the IOC's own values are
+        posted (their records are UDF until then). Never raises: a route
+        that fails here is made at its first value."""
         self.keep_chain(self.plan)
         attributes = self.target_attributes()
         channel_members = self.health.followers.with_followers(attributes)
@@ -359,8 +377,9 @@ class RootController(Controller):
                 )
             except Exception:
                 logger.debug("routes not prepared", exc_info=True)
-                return
+                break
             await asyncio.sleep(0)
+        await self.health.publisher.start(self.own_attributes())
 
     def start(self) -> None:
         """The transports serve: poll, supervise, read the CoE values.
@@ -377,7 +396,6 @@ class RootController(Controller):
             len(plan.masters),
             " (INVALID until the target answers)" if plan.offline_from else "",
         )
-        self.health.publisher.start()
         self.heartbeat = Heartbeat()
         self.start_count = count_start()
         coe = [a for t in self.terminals() for a in t.coe_attributes]
@@ -403,7 +421,7 @@ class RootController(Controller):
             await self.health.post(a["Connected"], state == "CONNECTED")
             await self.health.post(a["ConnectionState"], state)
             if error:
-                await update_if_changed(a["LastError"], error[:200])
+                await self.health.post(a["LastError"], error[:200])
         except Exception:  # never stop the caller (the supervisor)
             logger.debug("cannot show the link state", exc_info=True)
 
@@ -421,8 +439,8 @@ class RootController(Controller):
     async def _beat(self) -> None:
         """The heartbeat first: it must not wait on the figures below."""
         if self.heartbeat is not None:
-            await update_if_changed(self.attrs["Heartbeat"], self.heartbeat.beat())
-        await update_if_changed(self.attrs["StartCount"], self.start_count)
+            await self.health.post(self.attrs["Heartbeat"], self.heartbeat.beat())
+        await self.health.post(self.attrs["StartCount"], self.start_count)
 
     async def _post_stats(self) -> None:
         stats = [s for master in self.masters for s in master.poll_stats()]
@@ -441,44 +459,42 @@ class RootController(Controller):
         if not connected or not last_error:
             last_error = link.last_error
         a = self.attrs
-        await update_if_changed(a["PvCount"], self.pv_count)
-        await update_if_changed(a["Unserved"], self.unserved)
+        await self.health.post(a["PvCount"], self.pv_count)
+        await self.health.post(a["Unserved"], self.unserved)
         await self.health.post(
             a["Connected"],
             connected and bool(stats) and all(s.cycles > 0 for s in stats),
         )
-        await update_if_changed(
+        await self.health.post(
             a["PollCycleTime"],
             1000.0 * max((s.last_cycle_s for s in stats), default=0.0),
         )
-        await update_if_changed(a["PollRate"], self.rates.cycles_per_second)
-        await update_if_changed(a["AdsRequestRate"], self.rates.requests_per_second)
-        await update_if_changed(a["PostRate"], self.rates.posts_per_second)
+        await self.health.post(a["PollRate"], self.rates.cycles_per_second)
+        await self.health.post(a["AdsRequestRate"], self.rates.requests_per_second)
+        await self.health.post(a["PostRate"], self.rates.posts_per_second)
         errors_total = sum(s.errors + s.item_errors for s in stats)
-        await update_if_changed(a["PollErrors"], min(errors_total, 2**31 - 1))
-        await update_if_changed(a["LastError"], last_error[:200])
+        await self.health.post(a["PollErrors"], min(errors_total, 2**31 - 1))
+        await self.health.post(a["LastError"], last_error[:200])
         await self.health.post(a["ConnectionState"], str(link.state))
-        await update_if_changed(a["Reconnects"], min(link.reconnects, 2**31 - 1))
-        await update_if_changed(a["Resyncs"], min(link.resyncs, 2**31 - 1))
-        await update_if_changed(a["LastRecovery"], link.last_recovery_s)
-        await update_if_changed(
-            a["ChainChanges"], self.reconnection.chain_changes[:200]
-        )
-        await update_if_changed(
+        await self.health.post(a["Reconnects"], min(link.reconnects, 2**31 - 1))
+        await self.health.post(a["Resyncs"], min(link.resyncs, 2**31 - 1))
+        await self.health.post(a["LastRecovery"], link.last_recovery_s)
+        await self.health.post(a["ChainChanges"], self.reconnection.chain_changes[:200])
+        await self.health.post(
             a["InvalidPvs"], min(self.health.invalid_count, 2**31 - 1)
         )
         live = self.reconnection.live
-        await update_if_changed(a["SymbolVersion"], live.symbol_version)
-        await update_if_changed(a["DeviceName"], live.device_name)
-        await update_if_changed(a["DeviceVersion"], live.device_version)
+        await self.health.post(a["SymbolVersion"], live.symbol_version)
+        await self.health.post(a["DeviceName"], live.device_name)
+        await self.health.post(a["DeviceVersion"], live.device_version)
         sample = self.process.sample()
-        await update_if_changed(a["Uptime"], sample.uptime_s)
-        await update_if_changed(a["CpuLoad"], sample.cpu_percent)
-        await update_if_changed(a["MemoryUsed"], sample.memory_mib)
-        await update_if_changed(a["UptimeText"], sample.uptime_text)
-        await update_if_changed(a["IocCpuLoad"], sample.cpu_percent_of_all)
-        await update_if_changed(a["MemUsedBytes"], sample.memory_bytes)
-        await update_if_changed(
+        await self.health.post(a["Uptime"], sample.uptime_s)
+        await self.health.post(a["CpuLoad"], sample.cpu_percent)
+        await self.health.post(a["MemoryUsed"], sample.memory_mib)
+        await self.health.post(a["UptimeText"], sample.uptime_text)
+        await self.health.post(a["IocCpuLoad"], sample.cpu_percent_of_all)
+        await self.health.post(a["MemUsedBytes"], sample.memory_bytes)
+        await self.health.post(
             a["PollOverruns"], min(sum(s.overruns for s in stats), 2**31 - 1)
         )
 
