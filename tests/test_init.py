@@ -243,9 +243,8 @@ def test_the_chain_of_dir_plays_the_same_rack(
     assert offline.result.returncode == 0, offline.result.stderr[-2000:]
     assert files(offline.out) == files(out)
 
-    terminals = out / "terminals"
-    with SimProcess(out / "chain.yaml", terminals=terminals,
-                    revisions=[terminals]) as replay:  # fmt: skip
+    assert load_chain(out / "chain.yaml").terminal_dirs == ("terminals",)
+    with SimProcess(out / "chain.yaml") as replay:  # plain `sim --chain FILE`
         again = run_init(rack, replay.pyads_ip, tmp_path / "replayed")
     assert again.result.returncode == 0, again.result.stderr[-2000:]
     replayed = {
