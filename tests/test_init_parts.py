@@ -14,9 +14,16 @@ import pytest
 import yaml
 
 from fastcs_ethercat.ads.ethercat import SlaveIdentity
+from fastcs_ethercat.chain.file import load_chain
+from fastcs_ethercat.cli.terminals import select_group_command
 from fastcs_ethercat.commission import layout
 from fastcs_ethercat.commission.choices import running_choice, with_running
-from fastcs_ethercat.commission.rack import ChangeKind, RackSlave, rack_changes
+from fastcs_ethercat.commission.rack import (
+    ChangeKind,
+    RackSlave,
+    rack_changes,
+    rack_slaves,
+)
 from fastcs_ethercat.commission.run import InitRequest, Outcome, run_init
 from fastcs_ethercat.commission.sources import (
     Describer,
@@ -397,3 +404,76 @@ masters:
     assert line.startswith(
         f"PVs: {len(entries)}; longest PV name {longest} of 60 characters: {named}; "
     )
+
+
+def test_init_selects_the_oversampling_factor_the_rack_runs(tmp_path: Path) -> None:
+    out = tmp_path / "rack"
+    chain = """\
+masters:
+- slaves:
+  - {type: EK1100}
+  - {type: EL3702, oversampling: 5}
+  - {type: EL3702, oversampling: 5}
+  - {type: EL3702, oversampling: 20}
+  - {type: ELM3704-0000, pdo_group: Oversampling 20 (24Bit)}
+"""
+    shipped = load_terminals([TERMINALS_DIR])
+    shipped_factor = shipped.get("EL3702").terminal.oversampling
+    assert shipped_factor is not None and shipped_factor.selected_factor == 10
+    assert shipped.get("ELM3704-0000").terminal.selected_pdo_group == (
+        "Oversampling 1 (24Bit)"
+    )
+
+    outcome, _lines = init_from_chain(tmp_path, chain, out)
+
+    found = [
+        (slave.type_name, slave.oversampling, slave.pdo_group)
+        for slave in rack_slaves(load_chain(out / "chain.yaml"))
+    ]
+    assert found[1:] == [
+        ("EL3702", 5, None),
+        ("EL3702", 5, None),
+        ("EL3702", 20, None),
+        ("ELM3704-0000", None, "Oversampling 20 (24Bit)"),
+    ]
+    written = load_terminals([out / "terminals"], use_cache=False)
+    el3702 = written.get("EL3702").terminal.oversampling
+    assert el3702 is not None and el3702.selected_factor == 5
+    elm3704 = written.get("ELM3704-0000").terminal.active_group
+    assert elm3704 is not None
+    assert (elm3704.name, elm3704.oversampling_factor) == (
+        "Oversampling 20 (24Bit)",
+        20,
+    )
+    assert (
+        "EL3702 revision 0x00020000: terminals (Term 2 (EL3702), Term 3 (EL3702), "
+        "Term 4 (EL3702), ...) sample at different factors (5 on 2, 20 on 1); "
+        "the YAML selects 5"
+    ) in outcome.decisions
+
+
+def test_a_group_the_engineer_chose_is_kept_on_the_next_run(tmp_path: Path) -> None:
+    out = tmp_path / "rack"
+    chain = """\
+masters:
+- slaves:
+  - {type: EK1100}
+  - {type: EL3102, pdo_group: Standard}
+"""
+    init_from_chain(tmp_path, chain, out)
+    yaml_file = out / "terminals" / "EL3102.yaml"
+    first = load_terminals([yaml_file], use_cache=False).get("EL3102").terminal
+    assert first.selected_pdo_group == "Standard"  # what the rack runs
+    select_group_command(yaml_file, "Compact")  # `terminals select-group`
+    chosen = yaml_file.read_bytes()
+
+    outcome, lines = init_from_chain(tmp_path, chain, out)
+
+    assert yaml_file.read_bytes() == chosen
+    assert outcome.changes == []  # the rack did not change: the file did
+    decision = (
+        "EL3102 revision 0x00110000: EL3102.yaml selects PDO group 'Compact', the "
+        "rack runs 'Standard': kept (`terminals select-group` changes it)"
+    )
+    assert outcome.decisions == [decision]
+    assert f"  {decision}" in lines
