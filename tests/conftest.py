@@ -36,6 +36,9 @@ ESI_SUBSET = TEST_DATA / "esi" / "beckhoff"
 """The devices the tests use, cut from `SHARED_ESI` (see its README)."""
 EL3356_FIXTURE = TEST_DATA / "esi" / "EL3356-0010-fixture.xml"
 """A hand-written EL3356-0010: no public copy of its ESI exists."""
+SCREENSHOTS = REPO_ROOT / "build" / "screenshots"
+"""Where the editor's browser tests keep a screenshot of every page unless
+$FASTCS_ETHERCAT_SCREENSHOTS names another folder (CI uploads this one)."""
 
 #: Every EPICS process in tests runs with these: loopback only, no broadcast.
 EPICS_LOOPBACK_ENV: dict[str, str] = dict(LOOPBACK)
