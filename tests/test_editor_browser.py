@@ -34,7 +34,7 @@ from fastcs_ethercat.process import ChildProcess
 from fastcs_ethercat.sim.process import SimProcess
 from fastcs_ethercat.terminals.files import read_terminal_file
 
-from .conftest import SCREENSHOTS
+from .conftest import NEEDS_ESI_SUBSET, SCREENSHOTS
 from .ioc_support import IOC_COMMAND, ioc_env, new_token, processes_with_token, stop_pid
 from .test_terminals_support import ESI, FIXTURE, TERMINALS, run_cli
 
@@ -48,9 +48,7 @@ if CHROMIUM is None or CHROMEDRIVER is None:
         allow_module_level=True,
     )
 if not ESI.is_dir():
-    pytest.skip(
-        "needs the shared Beckhoff ESI files (../shared/esi)", allow_module_level=True
-    )
+    pytest.skip(NEEDS_ESI_SUBSET, allow_module_level=True)
 
 from selenium import webdriver  # noqa: E402
 from selenium.common.exceptions import (  # noqa: E402
