@@ -34,8 +34,16 @@ SHARED_ESI = REPO_ROOT.parent / "shared" / "esi"
 """The full set of real Beckhoff ESI files, beside the clone (not in it)."""
 ESI_SUBSET = TEST_DATA / "esi" / "beckhoff"
 """The devices the tests use, cut from `SHARED_ESI` (see its README)."""
+NEEDS_ESI_SUBSET = (
+    "needs the Beckhoff ESI subset committed in tests/data/esi/beckhoff "
+    "(`python -m tests.esi_subset SRC` writes it from the full set)"
+)
+"""Why a test that reads `ESI_SUBSET` skips when the folder is gone."""
 EL3356_FIXTURE = TEST_DATA / "esi" / "EL3356-0010-fixture.xml"
 """A hand-written EL3356-0010: no public copy of its ESI exists."""
+SCREENSHOTS = REPO_ROOT / "build" / "screenshots"
+"""Where the editor's browser tests keep a screenshot of every page unless
+$FASTCS_ETHERCAT_SCREENSHOTS names another folder (CI uploads this one)."""
 
 #: Every EPICS process in tests runs with these: loopback only, no broadcast.
 EPICS_LOOPBACK_ENV: dict[str, str] = dict(LOOPBACK)

@@ -18,7 +18,7 @@ import yaml
 from packaging.requirements import Requirement
 
 from fastcs_ethercat.ioc.config import config_schema_text, load_ioc_config
-from tests.conftest import REPO_ROOT
+from tests.conftest import REPO_ROOT, SCREENSHOTS
 
 SCHEMA_FILE = REPO_ROOT / "ioc" / "ioc.schema.json"
 DEPLOY = REPO_ROOT / "deploy"
@@ -162,6 +162,23 @@ def test_the_ci_workflow_is_valid_offline() -> None:
 
     assert workflows
     assert done.returncode == 0, done.stdout + done.stderr
+
+
+def test_ci_keeps_the_editor_screenshots_of_every_run() -> None:
+    workflow = _yaml(REPO_ROOT / ".github" / "workflows" / "ci.yml")
+    steps = workflow["jobs"]["test"]["steps"]
+    tests = next(i for i, step in enumerate(steps) if "pytest" in step.get("run", ""))
+    uploads = [
+        step
+        for step in steps[tests + 1 :]
+        if step.get("uses", "").startswith("actions/upload-artifact@")
+    ]
+
+    assert "FASTCS_ETHERCAT_SCREENSHOTS" not in str(steps[tests])  # the default
+    [upload] = uploads
+    assert upload["if"] == "always()"  # a failing run's screenshots above all
+    folder = SCREENSHOTS.relative_to(REPO_ROOT).as_posix()
+    assert upload["with"]["path"].rstrip("/") == folder
 
 
 def test_licence_and_build_context() -> None:

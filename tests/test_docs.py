@@ -28,6 +28,9 @@ SPHINX_BUILD = (
     "html",
 )
 """The README's build command: warnings are errors."""
+README_MAX_LINES = 200
+"""The README is the front door (what it is, two commands, an example,
+links); the rest lives in docs/."""
 
 
 def test_every_cli_command_and_option_has_help() -> None:
@@ -74,3 +77,24 @@ def test_the_readmes_example_config_is_valid() -> None:
     assert found, "README: no YAML in 'An example'"
     config = IocConfig.model_validate(yaml.safe_load(found.group(1)))
     assert config.prefix == "BL21I-EA-ECAT-01" and config.route is not None
+
+
+def test_the_readme_is_a_front_door() -> None:
+    """Short, both commands in "Two commands" (set up and run the demo; set up
+    and run the tests, as `.ci/run` does), every link to a file that exists."""
+    readme = (REPO_ROOT / "README.md").read_text(encoding="utf-8")
+    section = readme.split("\n## Two commands\n", 1)[1].split("\n## ", 1)[0]
+    demo, tests = re.findall(r"```bash\n(.+?)\n```", section, re.DOTALL)
+    ci_run = (REPO_ROOT / ".ci" / "run").read_text(encoding="utf-8").splitlines()
+    links = re.findall(r"\]\(([^)#]+)\)", readme)
+
+    assert len(readme.splitlines()) <= README_MAX_LINES
+    assert demo.startswith("python3 -m venv .venv && .venv/bin/pip install ")
+    assert demo.endswith(" && .venv/bin/fastcs-ethercat demo")
+    assert [line for line in ci_run if line.startswith("python3 -m venv")] == [tests]
+    assert tests.endswith(" && .venv/bin/pytest")
+    assert any(link.startswith("docs/") for link in links)
+    missing = [
+        link for link in links if "://" not in link and not (REPO_ROOT / link).exists()
+    ]
+    assert missing == []

@@ -5,8 +5,12 @@ catalog, chooses EL3104, switches it to Compact, unticks its symbol, ticks a
 CoE object, shows an error next to a bad name, reviews the diff and saves.
 The file must equal what `select-group`/`select`/`coe` write for the same
 choices, and `ioc --list-pvs` against the simulator must list exactly the PVs
-the editor previewed. A screenshot of every page is written to
-`$FASTCS_ETHERCAT_SCREENSHOTS` (default: the test's temp dir).
+the editor previewed.
+
+A screenshot of every page is written to `$FASTCS_ETHERCAT_SCREENSHOTS`, by
+default `build/screenshots/` in the repository (the folder is printed at the
+end of the run); CI's workflow (`.github/workflows/ci.yml`) uploads that
+folder as the `editor-screenshots` artefact of every run, pass or fail.
 """
 
 from __future__ import annotations
@@ -30,7 +34,7 @@ from fastcs_ethercat.process import ChildProcess
 from fastcs_ethercat.sim.process import SimProcess
 from fastcs_ethercat.terminals.files import read_terminal_file
 
-from .conftest import REPO_ROOT
+from .conftest import NEEDS_ESI_SUBSET, SCREENSHOTS
 from .ioc_support import IOC_COMMAND, ioc_env, new_token, processes_with_token, stop_pid
 from .test_terminals_support import ESI, FIXTURE, TERMINALS, run_cli
 
@@ -44,9 +48,7 @@ if CHROMIUM is None or CHROMEDRIVER is None:
         allow_module_level=True,
     )
 if not ESI.is_dir():
-    pytest.skip(
-        "needs the shared Beckhoff ESI files (../shared/esi)", allow_module_level=True
-    )
+    pytest.skip(NEEDS_ESI_SUBSET, allow_module_level=True)
 
 from selenium import webdriver  # noqa: E402
 from selenium.common.exceptions import (  # noqa: E402
@@ -85,8 +87,7 @@ def work(tmp_path_factory: pytest.TempPathFactory) -> Path:
 @pytest.fixture(scope="module")
 def screenshots(request: pytest.FixtureRequest) -> Iterator[Path]:
     """Where every page's screenshot is kept (printed at the end)."""
-    default = REPO_ROOT / "build" / "screenshots"
-    folder = Path(os.environ.get("FASTCS_ETHERCAT_SCREENSHOTS") or default)
+    folder = Path(os.environ.get("FASTCS_ETHERCAT_SCREENSHOTS") or SCREENSHOTS)
     folder.mkdir(parents=True, exist_ok=True)
     yield folder
     capture = request.config.pluginmanager.get_plugin("capturemanager")

@@ -16,6 +16,7 @@ from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.terminals.files import read_terminal_file
 from fastcs_ethercat.terminals.selection import select_coe, select_group
 
+from .conftest import NEEDS_ESI_SUBSET
 from .test_terminals_support import ESI, TERMINALS, cache_home
 
 
@@ -50,7 +51,7 @@ def test_search_and_add_from_the_catalog(
     session: EditorSession, tmp_path: Path
 ) -> None:
     if not ESI.is_dir():
-        pytest.skip("needs the shared Beckhoff ESI files (../shared/esi)")
+        pytest.skip(NEEDS_ESI_SUBSET)
     with cache_home(tmp_path / "cache"):
         by_words = [e.type_name for e in session.search("ana. output 16bit")]
         assert "EL4134" in by_words

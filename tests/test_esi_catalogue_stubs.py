@@ -23,6 +23,7 @@ from lxml import etree
 from fastcs_ethercat.esi import build_catalog
 from fastcs_ethercat.terminals.files import read_terminal_file
 
+from .conftest import NEEDS_ESI_SUBSET
 from .test_terminals_support import ESI, TERMINALS, cache_home, run_cli
 
 PLACEHOLDER = "#x270b0000"
@@ -80,7 +81,7 @@ def _device(path: Path, type_name: str, revision: str) -> etree._Element:
 @pytest.fixture(scope="module")
 def esi_folder(tmp_path_factory: pytest.TempPathFactory) -> Path:
     if not ESI.is_dir():
-        pytest.skip("needs the shared Beckhoff ESI files (../shared/esi)")
+        pytest.skip(NEEDS_ESI_SUBSET)
     folder = tmp_path_factory.mktemp("esi")
     for name in REAL_FILES:
         shutil.copy(ESI / name, folder / name)

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import ast
 import re
+from collections.abc import Iterator
 from pathlib import Path
 
-from tests.conftest import ESI_SUBSET
+from tests.conftest import ESI_SUBSET, NEEDS_ESI_SUBSET, REPO_ROOT
 from tests.esi_subset import DLS_TYPES, QUIRKS, cut, device_spans, sha256, wanted
 
 README = ESI_SUBSET.parent / "README.md"
@@ -55,3 +57,52 @@ def test_the_readme_lists_every_file_with_its_size() -> None:
             r"[0-9a-f]{64}", digest
         )
         assert int(size) == path.stat().st_size, name
+
+
+def esi_skips() -> Iterator[tuple[str, str, str]]:
+    """(where, condition, reason) of every skip in tests/ whose condition
+    looks at ESI files: `if not X.is_dir(): pytest.skip(...)` and
+    `pytest.mark.skipif(not X.is_dir(), reason=...)`."""
+    for path in sorted((REPO_ROOT / "tests").glob("*.py")):
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        parents = {
+            child: node
+            for node in ast.walk(tree)
+            for child in ast.iter_child_nodes(node)
+        }
+        for node in ast.walk(tree):
+            if not isinstance(node, ast.Call):
+                continue
+            called = ast.unparse(node.func)
+            if called == "pytest.mark.skipif":
+                condition = ast.unparse(node.args[0])
+                reason = next(k.value for k in node.keywords if k.arg == "reason")
+            elif called == "pytest.skip":
+                branch = parents[parents[node]]
+                if not isinstance(branch, ast.If):
+                    continue
+                condition, reason = ast.unparse(branch.test), node.args[0]
+            else:
+                continue
+            if "ESI" in condition:
+                yield f"{path.name}:{node.lineno}", condition, ast.unparse(reason)
+
+
+def test_a_skip_for_want_of_esi_names_the_files_it_checks() -> None:
+    """The subset is committed (a plain clone has it); only the full set is
+    in ../shared/esi: a skip must not send a user looking for the wrong one."""
+    skips = list(esi_skips())
+    subset = [s for s in skips if "SHARED_ESI" not in s[1]]
+    full = [s for s in skips if "SHARED_ESI" in s[1]]
+
+    assert {where.split(":")[0] for where, _, _ in subset} >= {
+        "test_editor_browser.py",
+        "test_editor_session.py",
+        "test_esi_catalogue_stubs.py",
+        "test_terminals_catio.py",
+        "test_terminals_support.py",
+    }
+    assert [(w, r) for w, _, r in subset if r != "NEEDS_ESI_SUBSET"] == []
+    assert all("shared/esi" in reason for _, _, reason in full)
+    assert "tests/data/esi/beckhoff" in NEEDS_ESI_SUBSET
+    assert ESI_SUBSET == REPO_ROOT / "tests" / "data" / "esi" / "beckhoff"

@@ -202,8 +202,13 @@ def test_the_ioc_of_dir_lists_every_terminal_from_its_own_yaml(
     assert done.returncode == 0, done.stderr[-2000:]
     for sign in ("generic", "has no YAML", "served from", "no terminal YAML"):
         assert sign not in done.stderr
-    count = len(done.stdout.splitlines())
-    assert f"PVs: {count}; " in first.stdout
+    names = [line.split(" ", 1)[0] for line in done.stdout.splitlines()]
+    longest = max(names, key=len)
+    assert len(longest) <= 60
+    assert (
+        f"PVs: {len(names)}; longest PV name {len(longest)} of 60 characters: "
+        f"{longest}; "
+    ) in first.stdout
     sources = done.stdout
     assert f"{ADDED}.AI Standard Channel 1.Value" in sources
     assert "Term 102 (EL1014)" not in sources
@@ -243,9 +248,8 @@ def test_the_chain_of_dir_plays_the_same_rack(
     assert offline.result.returncode == 0, offline.result.stderr[-2000:]
     assert files(offline.out) == files(out)
 
-    terminals = out / "terminals"
-    with SimProcess(out / "chain.yaml", terminals=terminals,
-                    revisions=[terminals]) as replay:  # fmt: skip
+    assert load_chain(out / "chain.yaml").terminal_dirs == ("terminals",)
+    with SimProcess(out / "chain.yaml") as replay:  # plain `sim --chain FILE`
         again = run_init(rack, replay.pyads_ip, tmp_path / "replayed")
     assert again.result.returncode == 0, again.result.stderr[-2000:]
     replayed = {

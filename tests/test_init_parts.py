@@ -1,6 +1,8 @@
 """The parts of `init` that decide: what changed on the rack, which YAML
 describes a type and revision, the group it selects, the files' names and
-text. (The command against the simulator: `test_init.py`.)"""
+text, and the summary of a whole run (`run_init` from a chain file, played
+in this process as the IOC plays one: no simulator, no network). (The
+command against the simulator: `test_init.py`.)"""
 
 from __future__ import annotations
 
@@ -12,18 +14,29 @@ import pytest
 import yaml
 
 from fastcs_ethercat.ads.ethercat import SlaveIdentity
+from fastcs_ethercat.chain.file import load_chain
+from fastcs_ethercat.cli.terminals import select_group_command
 from fastcs_ethercat.commission import layout
 from fastcs_ethercat.commission.choices import running_choice, with_running
-from fastcs_ethercat.commission.rack import ChangeKind, RackSlave, rack_changes
+from fastcs_ethercat.commission.rack import (
+    ChangeKind,
+    RackSlave,
+    rack_changes,
+    rack_slaves,
+)
+from fastcs_ethercat.commission.run import InitRequest, Outcome, run_init
 from fastcs_ethercat.commission.sources import (
     Describer,
     Origin,
     discovery_registry,
     file_names,
 )
+from fastcs_ethercat.commission.summary import summary_lines
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.esi.catalog import build_catalog
+from fastcs_ethercat.ioc.app import list_pvs
 from fastcs_ethercat.ioc.config import load_ioc_config
+from fastcs_ethercat.ioc.naming import MAX_PV_LENGTH
 from fastcs_ethercat.ioc.plan import Point, PointKind, SlaveInfo, TerminalPlan
 from fastcs_ethercat.terminals.loader import load_terminals
 from tests.conftest import ESI_SUBSET, TERMINALS_DIR
@@ -285,3 +298,182 @@ def test_a_check_of_a_dir_in_a_missing_folder_leaves_no_folder(tmp_path: Path) -
         assert layout.differences(out, folder) == ["added: ioc.yaml"]
 
     assert list(tmp_path.iterdir()) == []
+
+
+PREFIX = "BL01T-EA-ECAT-01"
+ESI_FILES = ("Beckhoff EL1xxx.xml", "Beckhoff EL31xx.xml")
+"""The ESI of EL1014 and EL3102 only: an EL2024 has a YAML but no ESI."""
+
+
+def init_from_chain(
+    folder: Path, chain: str, out: Path, prefix: str = PREFIX
+) -> tuple[Outcome, list[str]]:
+    """`init --from-chain` in this process: its outcome and summary lines."""
+    esi = folder / "esi"
+    esi.mkdir(exist_ok=True)
+    for name in ESI_FILES:
+        (esi / name).write_bytes((ESI_SUBSET / name).read_bytes())
+    path = folder / "rack-chain.yaml"
+    path.write_text(chain, encoding="utf-8")
+    settings = layout.Settings(prefix=prefix, target="192.0.2.50")
+    request = InitRequest(settings, (esi,), out, from_chain=path)
+    outcome = run_init(request, lambda line: None)
+    return outcome, list(summary_lines(outcome, out, check=False))
+
+
+def test_the_summary_lists_what_needs_a_human_decision(tmp_path: Path) -> None:
+    out = tmp_path / "rack"
+    (out / "terminals").mkdir(parents=True)  # a YAML of a type gone from the rack
+    (out / "terminals" / "EL1084.yaml").write_bytes(
+        (TERMINALS_DIR / "EL1084.yaml").read_bytes()
+    )
+    earlier = layout.Settings(prefix="BL01T-EA-OLD-01", target="192.0.2.50")
+    (out / "ioc.yaml").write_text(layout.ioc_yaml(earlier), encoding="utf-8")
+    chain = """\
+masters:
+- slaves:
+  - {type: EK1100}
+  - {type: EL1014, revision: 0x00190000}      # newer than the ESI's newest
+  - {type: EL2024, revision: 0x00190000}      # no ESI of the type
+  - {type: EL9410, product_code: 0x24c23052}  # nothing describes it
+  - {type: EL3102, pdo_group: Standard}
+  - {type: EL3102, pdo_group: Compact}
+  - {type: EL3102, pdo_group: Compact}
+"""
+
+    outcome, lines = init_from_chain(tmp_path, chain, out)
+
+    assert (
+        "     1 x EL1014 revision 0x00190000: the YAML of the ESI's nearest "
+        "revision (terminals/EL1014.yaml, revision 0x00130000)"
+    ) in lines
+    assert "     1 x EL9410 revision 0x00000000: no description (-)" in lines
+    start = lines.index("needs a human decision: 5")
+    decisions = lines[start + 1 : start + 6]
+    assert decisions[0] == (
+        "  EL3102 revision 0x00110000: terminals run different PDO groups "
+        "('Compact' on 2, 'Standard' on 1); one YAML selects one ('Compact'): "
+        "each is served with the group it runs, or give the others a YAML of "
+        "their own"
+    )
+    assert decisions[1].startswith(
+        "  EL2024 revision 0x00190000 (Term 3 (EL2024)): no ESI of the type; "
+        "served from "
+    )
+    assert decisions[1].endswith(
+        "EL2024.yaml, matched by name: give an ESI source that has it"
+    )
+    assert decisions[2] == (
+        "  EL9410 revision 0x00000000 (Term 4 (EL9410)): unknown type (no ESI, "
+        "no YAML, no process data): served with its identity and diagnostics only"
+    )
+    assert decisions[3] == (
+        "  terminals/EL1084.yaml: no terminal on the rack uses EL1084 revision "
+        "0x00120000 now; kept (delete it if it is gone for good)"
+    )
+    assert decisions[4] == (
+        f"  {out / 'ioc.yaml'} keeps prefix 'BL01T-EA-OLD-01', not --prefix "
+        f"'{PREFIX}': edit it if that changed"
+    )
+    assert lines[start + 6].startswith("the IOC will warn at start (")
+    assert outcome.decisions == [line.removeprefix("  ") for line in decisions]
+    assert (out / "terminals" / "EL1084.yaml").is_file()
+
+
+def test_the_summary_names_the_longest_pv_against_the_budget(tmp_path: Path) -> None:
+    out = tmp_path / "rack"
+    chain = """\
+masters:
+- slaves:
+  - {type: EK1100}
+  - {type: EL1014}
+  - {type: EL3102}
+  - {type: EL2024}
+"""
+
+    outcome, lines = init_from_chain(
+        tmp_path, chain, out, prefix="BL01T-EA-ECAT-LONG-01"
+    )
+
+    entries, _warnings = list_pvs(load_ioc_config(out / "ioc.yaml"))
+    longest = max(len(entry.name) for entry in entries)
+    named = outcome.served.longest
+    assert len(named) == longest <= MAX_PV_LENGTH
+    assert named in {entry.name for entry in entries}
+    [line] = [line for line in lines if line.startswith("PVs: ")]
+    assert line.startswith(
+        f"PVs: {len(entries)}; longest PV name {longest} of 60 characters: {named}; "
+    )
+
+
+def test_init_selects_the_oversampling_factor_the_rack_runs(tmp_path: Path) -> None:
+    out = tmp_path / "rack"
+    chain = """\
+masters:
+- slaves:
+  - {type: EK1100}
+  - {type: EL3702, oversampling: 5}
+  - {type: EL3702, oversampling: 5}
+  - {type: EL3702, oversampling: 20}
+  - {type: ELM3704-0000, pdo_group: Oversampling 20 (24Bit)}
+"""
+    shipped = load_terminals([TERMINALS_DIR])
+    shipped_factor = shipped.get("EL3702").terminal.oversampling
+    assert shipped_factor is not None and shipped_factor.selected_factor == 10
+    assert shipped.get("ELM3704-0000").terminal.selected_pdo_group == (
+        "Oversampling 1 (24Bit)"
+    )
+
+    outcome, _lines = init_from_chain(tmp_path, chain, out)
+
+    found = [
+        (slave.type_name, slave.oversampling, slave.pdo_group)
+        for slave in rack_slaves(load_chain(out / "chain.yaml"))
+    ]
+    assert found[1:] == [
+        ("EL3702", 5, None),
+        ("EL3702", 5, None),
+        ("EL3702", 20, None),
+        ("ELM3704-0000", None, "Oversampling 20 (24Bit)"),
+    ]
+    written = load_terminals([out / "terminals"], use_cache=False)
+    el3702 = written.get("EL3702").terminal.oversampling
+    assert el3702 is not None and el3702.selected_factor == 5
+    elm3704 = written.get("ELM3704-0000").terminal.active_group
+    assert elm3704 is not None
+    assert (elm3704.name, elm3704.oversampling_factor) == (
+        "Oversampling 20 (24Bit)",
+        20,
+    )
+    assert (
+        "EL3702 revision 0x00020000: terminals (Term 2 (EL3702), Term 3 (EL3702), "
+        "Term 4 (EL3702), ...) sample at different factors (5 on 2, 20 on 1); "
+        "the YAML selects 5"
+    ) in outcome.decisions
+
+
+def test_a_group_the_engineer_chose_is_kept_on_the_next_run(tmp_path: Path) -> None:
+    out = tmp_path / "rack"
+    chain = """\
+masters:
+- slaves:
+  - {type: EK1100}
+  - {type: EL3102, pdo_group: Standard}
+"""
+    init_from_chain(tmp_path, chain, out)
+    yaml_file = out / "terminals" / "EL3102.yaml"
+    first = load_terminals([yaml_file], use_cache=False).get("EL3102").terminal
+    assert first.selected_pdo_group == "Standard"  # what the rack runs
+    select_group_command(yaml_file, "Compact")  # `terminals select-group`
+    chosen = yaml_file.read_bytes()
+
+    outcome, lines = init_from_chain(tmp_path, chain, out)
+
+    assert yaml_file.read_bytes() == chosen
+    assert outcome.changes == []  # the rack did not change: the file did
+    decision = (
+        "EL3102 revision 0x00110000: EL3102.yaml selects PDO group 'Compact', the "
+        "rack runs 'Standard': kept (`terminals select-group` changes it)"
+    )
+    assert outcome.decisions == [decision]
+    assert f"  {decision}" in lines

@@ -16,7 +16,8 @@ from pathlib import Path
 
 import pytest
 
-from tests.conftest import REPO_ROOT
+from fastcs_ethercat.terminals.loader import load_terminals
+from tests.conftest import REPO_ROOT, TERMINALS_DIR
 from tests.ioc_support import free_port, ioc_env, start_ioc
 from tests.processes import SESSION_VARIABLE, TOKEN_VARIABLE, new_token
 
@@ -25,11 +26,55 @@ pytestmark = pytest.mark.e2e
 IOC = (sys.executable, "-m", "fastcs_ethercat")
 README_COE_EXAMPLE = ":ETH1:RIO21:MOD22:C8000:EnableFilter"
 """The README's CoE example (below the prefix): the demo serves it."""
+TERMINAL_PV = re.compile(r"^(?P<terminal>[^:]+:ETH\d+:RIO\d+:MOD\d+):(?P<rest>.+)$")
+TWINCAT_TERMINAL = re.compile(r"^Term \d+ \((?P<type>[^)]+)\)\.")
+"""A symbol's source names its terminal: `Term 5 (EL3104).AI ...`."""
+ANALOG_INPUT = re.compile(r"^(EL|ELM|EP)3\d")
+"""Beckhoff's analog input types: EL3104, ELM3704-0000, EP3174-0002."""
 
 
 def test_the_readme_names_the_coe_example() -> None:
     readme = (REPO_ROOT / "README.md").read_text(encoding="utf-8")
     assert f"DEMO{README_COE_EXAMPLE}" in readme
+
+
+def test_the_demo_serves_one_coe_object_of_every_analog_input_type() -> None:
+    """What the demo tutorial promises: each analog input type (EL3.., ELM3..,
+    EP3..) with a CoE dictionary serves one CoE object, named in the text."""
+    done = _run("ioc", "--config", "ioc/demo.yaml", "--chain",
+                "ioc/demo-chain.yaml", "--list-pvs")  # fmt: skip
+    assert done.returncode == 0, done.stderr[-2000:]
+    types: dict[str, str] = {}  # `DEMO:ETH1:RIO1:MOD5` -> `EL3104`
+    coe: dict[str, set[str]] = {}  # `DEMO:ETH1:RIO1:MOD5` -> {`C8000:EnableFilter`}
+    for line in done.stdout.splitlines():
+        name, _access, _type, source = line.split(" ", 3)
+        found = TERMINAL_PV.match(name)
+        if found is None:  # the IOC's and the masters' own PVs
+            continue
+        symbol = TWINCAT_TERMINAL.match(source)
+        if symbol:
+            types[found["terminal"]] = symbol["type"]
+        if source.startswith("CoE:"):
+            pv = found["rest"].removesuffix("_RBV")
+            coe.setdefault(found["terminal"], set()).add(pv)
+    shipped = load_terminals([TERMINALS_DIR])
+    analog = {
+        type_name
+        for type_name in types.values()
+        if ANALOG_INPUT.match(type_name) and shipped.get(type_name).terminal.coe_objects
+    }
+    served: dict[str, set[str]] = {}
+    for terminal, objects in coe.items():
+        served.setdefault(types[terminal], set()).update(objects)
+    tutorial = (REPO_ROOT / "docs" / "tutorials" / "demo.md").read_text()
+    promise = " ".join(tutorial.split("The demo also serves one CoE", 1)[1].split())
+
+    assert analog == {"EL3104", "EL3124", "EL3202", "EL3314", "EL3356-0010",
+                      "EL3602", "ELM3704-0000", "EP3174-0002"}  # fmt: skip
+    assert set(served) == analog
+    for type_name in sorted(analog):
+        [pv] = served[type_name]  # one CoE object of each type
+        assert type_name in promise and f"`...:{pv}`" in promise, (type_name, pv)
 
 
 def _run(

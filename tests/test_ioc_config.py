@@ -211,3 +211,31 @@ def test_paths_resolve_against_the_file_wherever_it_is_loaded_from(
     assert config.screens_dir == Path("config") / "screens"
     assert config.terminal_dirs[0] == Path("config") / "terminals"
     assert (tmp_path / config.terminal_dirs[0]).parent == path.parent
+
+
+def test_a_config_without_terminal_dirs_serves_those_its_chain_names(
+    tmp_path: Path,
+) -> None:
+    rack = tmp_path / "rack"
+    rack.mkdir()
+    (rack / "chain.yaml").write_text(
+        "terminal_dirs: [terminals, ../site]\nmasters:\n- slaves: [{type: EK1100}]\n",
+        encoding="utf-8",
+    )
+    plain = _write(tmp_path, "prefix: X\ntarget: h\nchain: rack/chain.yaml\n")
+    own = _write(
+        tmp_path,
+        "prefix: X\ntarget: h\nchain: rack/chain.yaml\nterminal_dirs: [mine]\n",
+        name="own.yaml",
+    )
+
+    assert load_ioc_config(plain).terminal_dirs == (
+        rack / "terminals",
+        rack / ".." / "site",
+    )
+    assert load_ioc_config(own).terminal_dirs == (tmp_path / "mine",)
+    flagged = load_ioc_config(None, {"prefix": "X", "target": "h",
+                                     "chain": str(rack / "chain.yaml")})  # fmt: skip
+    assert flagged.terminal_dirs[0] == rack / "terminals"
+    (rack / "chain.yaml").write_text("masters:\n- slaves: [{type: EK1100}]\n")
+    assert load_ioc_config(plain).terminal_dirs == (BUILTIN_TERMINALS_DIR,)

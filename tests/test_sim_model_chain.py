@@ -178,3 +178,73 @@ def test_the_cli_reports_a_bad_chain_in_one_line(tmp_path: Path) -> None:
     assert len(lines) == 1
     assert lines[0].startswith(f"error: {bad}:3:")
     assert "EL9999" in lines[0]
+
+
+def test_a_chain_plays_from_the_terminal_dirs_it_names(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`terminal_dirs`, relative to the chain file, replace the shipped types;
+    each revision in them is played as its own (what `init` writes)."""
+    from fastcs_ethercat.esi.catalog import build_catalog
+    from fastcs_ethercat.terminals.files import write_terminal_file
+    from fastcs_ethercat.terminals.generate import terminal_from_esi
+    from tests.conftest import ESI_SUBSET
+
+    rack = tmp_path / "rack"
+    terminals = rack / "terminals"
+    terminals.mkdir(parents=True)
+    catalog = build_catalog(ESI_SUBSET)
+    for name in ("EK1100.yaml", "EL1014.yaml"):
+        (terminals / name).write_bytes((TERMINALS_DIR / name).read_bytes())
+    write_terminal_file(
+        terminals / "EL3102.yaml", {"EL3102": terminal_from_esi(catalog.load("EL3102"))}
+    )
+    older = terminal_from_esi(catalog.load("EL1014", 0x00120000))
+    write_terminal_file(terminals / "EL1014_r00120000.yaml", {"EL1014": older})
+    chain = rack / "chain.yaml"
+    chain.write_text(
+        "terminal_dirs: [terminals]\nmasters:\n- slaves:\n  - {type: EK1100}\n"
+        "  - {type: EL3102}\n  - {type: EL1014, revision: 0x00120000}\n",
+        encoding="utf-8",
+    )
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+
+    target = SimTarget.from_chain(Path("..") / "rack" / "chain.yaml")
+
+    slaves = target.devices[0].master.slaves
+    assert [s.type_name for s in slaves] == ["EK1100", "EL3102", "EL1014"]
+    assert slaves[2].terminal.identity.revision_number == 0x00120000
+    assert target.notes == []  # the older EL1014 from its own revision's YAML
+    with pytest.raises(UserError, match="unknown terminal type 'EL3102'"):
+        SimTarget.from_chain(chain, TERMINALS_DIR)  # --terminals DIR wins
+
+
+def test_terminal_dirs_that_are_not_there_name_the_chain_line(tmp_path: Path) -> None:
+    chain = tmp_path / "chain.yaml"
+    chain.write_text(
+        "masters:\n- slaves: [{type: EK1100}]\nterminal_dirs: [absent]\n",
+        encoding="utf-8",
+    )
+
+    with pytest.raises(UserError) as caught:
+        SimTarget.from_chain(chain)
+
+    message = str(caught.value)
+    assert message.startswith(f"{chain}:3:1: terminal_dirs: ")
+    assert f"{tmp_path / 'absent'}: no such terminal YAML" in message
+    with pytest.raises(UserError, match=r"terminal_dirs: .*a list of folders"):
+        parse_chain("terminal_dirs: []\nmasters:\n- slaves: [{type: EK1100}]\n")
+
+
+def test_without_terminal_dirs_a_chain_plays_from_the_shipped_types(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.chdir(tmp_path)  # no terminals/ here: the shipped ones play it
+    chain = load_chain(DEMO_CHAIN)
+    assert chain.terminal_dirs is None
+
+    target = SimTarget.from_chain(chain)
+
+    assert target.describe()["slaves"] == len(chain.masters[0].slaves)

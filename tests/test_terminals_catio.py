@@ -29,6 +29,7 @@ from fastcs_ethercat.terminals.selection import (
     select_symbols,
 )
 
+from .conftest import NEEDS_ESI_SUBSET
 from .test_terminals_support import ESI, TERMINALS, cache_home, run_cli
 
 TYPES = ("EL3104", "EL1502", "EL2024", "EL1014", "EL3702", "EL4134")
@@ -136,7 +137,7 @@ def catio_file(terminals: dict[str, TerminalType]) -> str:
 def chosen() -> dict[str, TerminalType]:
     """Our files with choices an engineer made in catio."""
     if not ESI.is_dir():
-        pytest.skip("needs the shared Beckhoff ESI files (../shared/esi)")
+        pytest.skip(NEEDS_ESI_SUBSET)
     terminals = {n: read_terminal_file(TERMINALS / f"{n}.yaml")[n] for n in TYPES}
     el3104 = select_coe(select_group(terminals["EL3104"], "Compact"), ["0x8000"])
     terminals["EL3104"] = rename_coe(

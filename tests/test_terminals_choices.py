@@ -3,10 +3,14 @@
 from __future__ import annotations
 
 import shutil
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
+import typer
 
+from fastcs_ethercat.cli import _typer_app
 from fastcs_ethercat.terminals.files import read_terminal_file, terminal_file_text
 from fastcs_ethercat.terminals.selection import (
     SelectionError,
@@ -20,6 +24,7 @@ from fastcs_ethercat.terminals.selection import (
 )
 
 from .test_terminals_support import (
+    ESI,
     TERMINALS,
     needs_esi,
     regenerated_old_el3104,
@@ -237,3 +242,71 @@ def test_units_and_severities_survive_regenerate(tmp_path: Path) -> None:
     assert (members["Value"].unit, members["Value"].scale) == ("mV", 0.30518)
     assert members["Status__Error"].severity == "minor"
     assert "symbol changed" not in result.out  # choices are not ESI facts
+
+
+MEMBER_TYPED = {
+    "fastcs-ethercat terminals units": (
+        "ELM3704-0000",
+        ["PAI Samples 2 Channel {channel}", "--unit", "mV", "--member"],
+        "Samples.ARRAY [1]",
+    ),
+    "fastcs-ethercat terminals severity": (
+        "EL3104",
+        ["AI Standard Channel {channel}", "none", "--member"],
+        "Status.Underrange",
+    ),
+}
+"""Every command with an option that takes a member name: the file, the
+arguments before the name, the name as `show` prints it."""
+
+
+def commands_with(option: str) -> Iterator[str]:
+    """Every command of the CLI (groups imported) that has `option`."""
+
+    def walk(command: Any, context: Any) -> Iterator[str]:
+        params = command.params
+        if any(
+            option in param.opts
+            for param in params
+            if param.param_type_name == "option"
+        ):
+            yield context.command_path
+        for name in (
+            command.list_commands(context) if hasattr(command, "list_commands") else ()
+        ):
+            child = command.get_command(context, name)
+            yield from walk(child, child.context_class(child, context, name))
+
+    root = typer.main.get_command(_typer_app)
+    yield from walk(root, root.context_class(root, info_name="fastcs-ethercat"))
+
+
+def test_show_prints_members_dotted() -> None:
+    shown = run_cli("terminals", "show", "EL3104", "--esi", str(ESI))
+
+    assert shown.code == 0, shown.err
+    assert (
+        "        members: Status.Underrange, Status.Overrange, Status.Limit 1, "
+        "Status.Limit 2, Status.Error, Status.Sync error, Status.TxPDO State, "
+        "Status.TxPDO Toggle, Value\n"
+    ) in shown.out
+    assert "__" not in shown.out
+
+
+def test_every_member_option_takes_both_spellings(tmp_path: Path) -> None:
+    """`Status.Underrange` as `show`, the editor and the docs write it, and
+    `Status__Underrange` as the YAML keeps it: the same member, the same file."""
+    assert sorted(commands_with("--member")) == sorted(MEMBER_TYPED)
+    for command, (type_name, args, dotted) in MEMBER_TYPED.items():
+        results = []
+        for spelling in (dotted, dotted.replace(".", "__")):
+            path = tmp_path / spelling.replace(" ", "_") / f"{type_name}.yaml"
+            path.parent.mkdir()
+            shutil.copy(TERMINALS / f"{type_name}.yaml", path)
+            done = run_cli(*command.split()[1:], str(path), *args, spelling)
+            assert done.code == 0, (command, spelling, done.err)
+            results.append((done.out, path.read_bytes()))
+        (out, text), again = results
+        assert again == (out, text), command
+        assert f".{dotted}: " in out  # said as `show` says it
+        assert text != (TERMINALS / f"{type_name}.yaml").read_bytes()

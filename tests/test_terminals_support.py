@@ -22,13 +22,11 @@ from fastcs_ethercat.cli import app
 from fastcs_ethercat.esi.catalog import EsiCatalog, build_catalog
 from tests.conftest import EL3356_FIXTURE as FIXTURE
 from tests.conftest import ESI_SUBSET as ESI
-from tests.conftest import TERMINALS_DIR
+from tests.conftest import NEEDS_ESI_SUBSET, TERMINALS_DIR
 
 TERMINALS = TERMINALS_DIR
 ESI_ARGS = ["--esi", str(ESI), "--esi", str(FIXTURE)]
-needs_esi = pytest.mark.skipif(
-    not ESI.is_dir(), reason="needs the shared Beckhoff ESI files (../shared/esi)"
-)
+needs_esi = pytest.mark.skipif(not ESI.is_dir(), reason=NEEDS_ESI_SUBSET)
 
 
 @dataclass(frozen=True)

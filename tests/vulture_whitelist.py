@@ -39,6 +39,7 @@ PYDANTIC_VALIDATORS = (
     _._slave_name,
     _._net_id_text,
     _._master_name,
+    _._terminal_dirs,
     _._one_password_source,  # ioc/config.py
     _._at_least_one,
     _._prefix_fits,

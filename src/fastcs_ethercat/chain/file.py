@@ -3,11 +3,13 @@ simulator plays it, the IOC boots from it, `chain dump` writes it).
 
 A chain file names the system's AMS NetId, its EtherCAT masters and, per
 master, the slaves (couplers and terminals) in bus order, each with its type
-from `terminals/`, optionally its TwinCAT name, revision, active PDO group,
+(a terminal YAML's), optionally its TwinCAT name, revision, active PDO group,
 oversampling factor and signal generators. Everything else (addresses,
-NetIds, names) defaults the way TwinCAT assigns it.
+NetIds, names) defaults the way TwinCAT assigns it. It may name where the
+YAML of its types is (`terminal_dirs`), so that it plays alone.
 
 ```yaml
+terminal_dirs: [terminals]     # the YAML of its types, relative to this file
 system:
   net_id: 127.0.0.1.1.1        # the system's AMS NetId (I/O server: port 300)
   task_cycle_ms: 10            # cycle of the task that moves the inputs
@@ -34,11 +36,20 @@ masters:
     product_code: 0x24c23052   # no process data, no CoE
 ```
 
+`terminal_dirs` (directories, files or globs of terminal YAML, relative to
+the chain file) replaces the shipped types, as the IOC config's key of that
+name does: `sim --chain FILE` plays the chain from them, every revision in
+them as its own, unless `--terminals` names a directory; an IOC whose config
+names this chain (`chain:`) and no `terminal_dirs` of its own serves them.
+`fastcs-ethercat init` writes `terminal_dirs: [terminals]` into its
+`chain.yaml`; `chain dump` writes none (the shipped types then play it).
+
 A `revision` other than the YAML's is played from the YAML of that revision
-when the simulator is given one (`sim --revisions DIR`: files of other
-revisions, e.g. from `terminals generate TYPE --revision REV`); otherwise the
-YAML's process data is played and the simulator says so once at start.
-`fastcs-ethercat chain dump` writes this format from a live target.
+when the simulator is given one (in `terminal_dirs`, or `sim --revisions
+DIR`: files of other revisions, e.g. from `terminals generate TYPE
+--revision REV`); otherwise the YAML's process data is played and the
+simulator says so once at start. `fastcs-ethercat chain dump` writes this
+format from a live target.
 
 Signal kinds: constant (`value`), counter (`start`, `step` per cycle), ramp
 (`minimum`..`maximum` over `period_s`), sine (`amplitude`, `offset`,
@@ -268,15 +279,42 @@ class SystemSpec(_Model):
 class Chain(_Model):
     """A whole simulated system: masters and their slaves in bus order."""
 
+    terminal_dirs: tuple[str, ...] | None = Field(
+        default=None,
+        description="Directories, files or globs of the terminal YAML of this "
+        "chain's types, relative to this file; they replace the shipped types "
+        "(default: the shipped types, or what `--terminals` names).",
+    )
     system: SystemSpec = Field(default_factory=SystemSpec)
     masters: list[MasterSpec] = Field(min_length=1, description="EtherCAT masters.")
 
     _located: LocatedYaml | None = PrivateAttr(default=None)
 
+    @field_validator("terminal_dirs", mode="before")
+    @classmethod
+    def _terminal_dirs(cls, value: Any) -> Any:
+        """A list of non-empty paths (one path alone is a list of one)."""
+        entries = [value] if isinstance(value, str) else value
+        if not isinstance(entries, list) or not entries:
+            raise ValueError(f"a list of folders of terminal YAML, got {value!r}")
+        for entry in entries:
+            if not isinstance(entry, str) or not entry.strip():
+                raise ValueError(f"a folder of terminal YAML is a path, got {entry!r}")
+        return entries
+
     @property
     def source(self) -> Path | str | None:
         """The file this chain was read from, if any."""
         return None if self._located is None else self._located.path
+
+    def terminal_sources(self) -> tuple[Path, ...] | None:
+        """`terminal_dirs` relative to the chain file's folder (None: the
+        chain names none)."""
+        if self.terminal_dirs is None:
+            return None
+        source = self.source
+        base = source.parent if isinstance(source, Path) else Path()
+        return tuple(base / entry for entry in self.terminal_dirs)
 
     def where(self, loc: Loc) -> str | None:
         """`line:column` of a key path in the source file (None without one)."""

@@ -16,13 +16,11 @@ import typer
 from fastcs_ethercat.ads.constants import ADS_TCP_PORT, ADS_UDP_PORT
 from fastcs_ethercat.cli.options import (
     LogLevelOption,
-    TerminalsDirOption,
     apply_log_level,
     terminals_dir,
 )
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.loopback import LOOPBACK
-from fastcs_ethercat.shipped import BUILTIN_TERMINALS_DIR
 
 log = logging.getLogger("fastcs_ethercat.sim")
 
@@ -48,7 +46,16 @@ def sim_command(
             help="Chain description (YAML): masters and their terminals.",
         ),
     ],
-    terminals: TerminalsDirOption = BUILTIN_TERMINALS_DIR,
+    terminals: Annotated[
+        Path | None,
+        typer.Option(
+            "--terminals",
+            metavar="DIR",
+            help="Directory of terminal YAML (default: the chain file's "
+            "`terminal_dirs`, else the shipped types).",
+            show_default=False,
+        ),
+    ] = None,
     revisions: Annotated[
         list[Path] | None,
         typer.Option(
@@ -96,7 +103,8 @@ def sim_command(
         raise UserError(f"--cycle-ms must be > 0, got {cycle_ms}")
     if not chain.is_file():
         raise UserError("chain file not found", path=chain)
-    terminals_dir(terminals)
+    if terminals is not None:
+        terminals_dir(terminals)
     apply_log_level(log_level)
 
     from fastcs_ethercat.chain.file import load_chain

@@ -29,9 +29,11 @@ def chain_text(plan: SystemPlan, prefix: str) -> str:
 
     header = (
         f"# The EtherCAT chain of {prefix} as `fastcs-ethercat init` found it\n"
-        "# (the simulator's chain format: `fastcs-ethercat sim --chain FILE`).\n"
+        "# (the simulator's chain format): `fastcs-ethercat sim --chain FILE`\n"
+        "# plays it with the terminal YAML of `terminal_dirs` beside it.\n"
     )
-    return dump_yaml(chain_data(plan), header=header)
+    data = {"terminal_dirs": [layout.TERMINALS_DIR], **chain_data(plan)}
+    return dump_yaml(data, header=header)
 
 
 def write_chain(folder: Path, plan: SystemPlan, prefix: str) -> None:

@@ -38,7 +38,6 @@ from fastcs_ethercat.ioc.discovery import discover
 from fastcs_ethercat.ioc.plan import SystemPlan
 from fastcs_ethercat.ioc.supervisor import Backoff
 from fastcs_ethercat.ioc.target import TargetError, prepare_target
-from fastcs_ethercat.terminals.model import TerminalType
 from fastcs_ethercat.terminals.registry import TerminalRegistry
 
 if TYPE_CHECKING:  # chain files are read only without the PLC or with `chain:`
@@ -90,25 +89,16 @@ async def chain_plan(
 ) -> SystemPlan:
     """What discovery would find on a PLC that runs `chain` (no network)."""
     from fastcs_ethercat.twincat.inprocess import sim_clients
+    from fastcs_ethercat.twincat.resolve import revisions_of
     from fastcs_ethercat.twincat.target import SimTarget
 
-    target = SimTarget(chain, registry, revisions=_by_revision(registry))
+    target = SimTarget(chain, registry, revisions=revisions_of(registry))
     async with sim_clients(target) as clients:
         plan = await discover(clients, registry, config, str(target.system_net_id))
     plan.offline_from = origin
     plan.device_name = plan.device_version = ""  # the PLC's, once it answers
     plan.symbol_version = 0
     return plan
-
-
-def _by_revision(registry: TerminalRegistry) -> dict[tuple[int, int], TerminalType]:
-    """Every YAML by (product code, revision): a chain's slave of another
-    revision than its type's first YAML is played from its own revision's."""
-    found: dict[tuple[int, int], TerminalType] = {}
-    for item in registry:
-        identity = item.terminal.identity
-        found[(identity.product_code, identity.revision_number)] = item.terminal
-    return found
 
 
 def chain_source(

@@ -221,8 +221,10 @@ class IocConfig(_Strict):
     terminal_dirs: tuple[Path, ...] = Field(
         default_factory=lambda: (BUILTIN_TERMINALS_DIR,),
         description="Directories, files or globs of terminal YAML, searched in "
-        "this order; relative to this file. Default: the terminal types shipped "
-        "with fastcs-ethercat (a list given here replaces them).",
+        "this order; relative to this file. Default: the `chain:` file's own "
+        "`terminal_dirs` when it names some (as `init` writes it), else the "
+        "terminal types shipped with fastcs-ethercat (a list given here "
+        "replaces them).",
     )
     deadbands: dict[str, Annotated[float, Field(ge=0)]] = Field(
         default_factory=dict,
@@ -375,6 +377,7 @@ def load_ioc_config(
     }
     for dotted, value in given.items():
         _set_dotted(raw, dotted, value)
+    _chain_terminal_dirs(raw)
     try:
         return IocConfig.model_validate(raw)
     except ValidationError as error:
@@ -438,6 +441,21 @@ def _resolve_paths(raw: dict[str, Any], base: Path) -> None:
     route = raw.get("route")
     if isinstance(route, dict) and "password_file" in route:
         route["password_file"] = resolve(route["password_file"])
+
+
+def _chain_terminal_dirs(raw: dict[str, Any]) -> None:
+    """Without `terminal_dirs` of its own, the config serves the YAML its
+    `chain:` file names (`chain.file`): the chain and its types stay one."""
+    chain = raw.get("chain")
+    if "terminal_dirs" in raw or not isinstance(chain, str):
+        return
+    if not Path(chain).is_file():  # said when the chain is read
+        return
+    from fastcs_ethercat.chain.file import load_chain
+
+    sources = load_chain(chain).terminal_sources()
+    if sources is not None:
+        raw["terminal_dirs"] = [str(path) for path in sources]
 
 
 def _set_dotted(raw: dict[str, Any], dotted: str, value: Any) -> None:

@@ -322,6 +322,28 @@ def _check_unique(
             names[slave] = master.name
 
 
+def chain_registry(chain: Chain) -> TerminalRegistry | None:
+    """The YAML of the chain's own `terminal_dirs` (None: it names none); a
+    folder that is not there is a `UserError` naming the chain's line."""
+    sources = chain.terminal_sources()
+    if sources is None:
+        return None
+    try:
+        return load_terminals(sources)
+    except UserError as error:
+        raise chain.error(("terminal_dirs",), str(error)) from None
+
+
+def revisions_of(registry: TerminalRegistry) -> dict[tuple[int, int], TerminalType]:
+    """Every YAML of `registry` by (product code, revision): a slave of
+    another revision than its type's first YAML is played from its own."""
+    found: dict[tuple[int, int], TerminalType] = {}
+    for item in registry:
+        identity = item.terminal.identity
+        found[(identity.product_code, identity.revision_number)] = item.terminal
+    return found
+
+
 def registry_for(
     terminals_dir: Path | str, types: Iterable[str] | None = None
 ) -> TerminalRegistry:
@@ -345,7 +367,9 @@ __all__ = [
     "ResolvedMaster",
     "ResolvedSlave",
     "Revisions",
+    "chain_registry",
     "load_revisions",
     "registry_for",
     "resolve_chain",
+    "revisions_of",
 ]

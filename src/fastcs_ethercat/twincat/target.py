@@ -26,13 +26,16 @@ from fastcs_ethercat.ads.ethercat import AlState
 from fastcs_ethercat.ads.frames import AmsPacket
 from fastcs_ethercat.ads.netid import AmsAddress, AmsNetId
 from fastcs_ethercat.chain.file import Chain, SystemSpec, load_chain
+from fastcs_ethercat.shipped import BUILTIN_TERMINALS_DIR
 from fastcs_ethercat.terminals.registry import TerminalRegistry
 from fastcs_ethercat.twincat.device import SimDevice
 from fastcs_ethercat.twincat.resolve import (
     ResolvedSlave,
     Revisions,
+    chain_registry,
     registry_for,
     resolve_chain,
+    revisions_of,
 )
 from fastcs_ethercat.twincat.services import (
     DEVICE_PORT_NAME,
@@ -106,18 +109,19 @@ class SimTarget:
         revisions: Revisions | None = None,
     ) -> SimTarget:
         """Build from a chain (or a chain file) and the terminal YAML directory
-        (default: `terminals/` in the current directory, else next to the
-        chain file's directory, as in the repository), with YAML of other
+        (default: the chain's own `terminal_dirs`, every revision in them
+        played as its own, else the shipped types), with YAML of other
         revisions (`load_revisions`)."""
         if not isinstance(chain, Chain):
             chain = load_chain(chain)
-        if terminals_dir is None:
-            terminals_dir = _default_terminals(chain)
+        own = chain_registry(chain) if terminals_dir is None else None
+        if own is not None:
+            return cls(chain, own, seed, {**revisions_of(own), **(revisions or {})})
         terminals = (
             terminals_dir
             if isinstance(terminals_dir, TerminalRegistry)
             else registry_for(
-                terminals_dir,
+                BUILTIN_TERMINALS_DIR if terminals_dir is None else terminals_dir,
                 {slave.type for master in chain.masters for slave in master.slaves},
             )
         )
@@ -408,13 +412,6 @@ class SimTarget:
     def addresses(self) -> Collection[AmsAddress]:
         """Every AMS address that answers (the rest answer AMS error 0x6)."""
         return self._ports.keys()
-
-
-def _default_terminals(chain: Chain) -> Path:
-    here = Path("terminals")
-    if here.is_dir() or chain.source is None:
-        return here
-    return Path(chain.source).resolve().parent.parent / "terminals"
 
 
 __all__ = ["SimTarget"]
