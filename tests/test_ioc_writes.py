@@ -234,6 +234,31 @@ def test_a_put_with_callback_that_was_not_delivered_reports_a_failure(
         assert rig.sim.get_symbol(ANALOG_SYMBOL) == 100
 
 
+def test_a_refused_put_of_the_plcs_own_value_does_not_stay_in_alarm(rig: Rig) -> None:
+    """Issue 25: a put of the value the PLC already holds, refused (the
+    target away; then the target answering an error): the client sees the
+    put fail, and once a readback shows the PLC's value (after the
+    reconnect; a fresh one asked for after the error) the setpoint shows it
+    with no alarm, as it equals what the PLC holds."""
+    rig.ioc.tool("caput", "-c", rig.pv(ANALOG), "100")
+    assert wait_for(lambda: rig.sim.get_symbol(ANALOG_SYMBOL) == 100, 10)
+    fine = ("100", "", "NO_ALARM")
+    rig.sim.add_fault("refuse", seconds=3)
+    assert wait_for(lambda: rig.root("ConnectionState") != "CONNECTED", 5)
+    while_away = _put_with_callback(rig, ANALOG, "100")
+    assert rig.all_back()
+    after_reconnect = wait_for(lambda: rig.setpoint(ANALOG) == fine, 10)
+    rig.sim.add_fault("error", code=1793, group=0xF005)  # writes by handle only
+    refused = _put_with_callback(rig, ANALOG, "100")
+    after_refusal = wait_for(lambda: rig.setpoint(ANALOG) == fine, 10)
+    final = rig.setpoint(ANALOG)
+
+    assert _put_status(while_away) == "WRITE", while_away
+    assert after_reconnect
+    assert _put_status(refused) == "WRITE", refused
+    assert after_refusal, final
+
+
 @pytest.mark.parametrize("landed", [True, False])
 def test_a_put_into_a_stall_is_decided_by_its_read_back(rig: Rig, landed: bool) -> None:
     """`caput -c` 50 ms into a stall of 2 s: the write reaches the simulator
