@@ -261,7 +261,9 @@ def test_a_refused_put_of_the_plcs_own_value_does_not_stay_in_alarm(rig: Rig) ->
 
 @pytest.mark.parametrize("landed", [True, False])
 def test_a_put_into_a_stall_is_decided_by_its_read_back(rig: Rig, landed: bool) -> None:
-    """`caput -c` 50 ms into a stall of 2 s: the write reaches the simulator
+    """`caput -c` ~0.3 s into a stall of 2 s (issue 25 asked for 50 ms;
+    where in the stall does not matter, only that the put is in flight
+    when the IOC gives the target up): the write reaches the simulator
     (it serves requests during a stall, only the answers wait), the IOC
     loses the target and closes its port (the write in flight fails: its
     outcome is unknown, TIMEOUT). Once the target answers again the
