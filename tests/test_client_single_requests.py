@@ -14,6 +14,7 @@ from collections.abc import Sequence
 
 import pytest
 
+from fastcs_ethercat.ads import client as client_module
 from fastcs_ethercat.ads.client import AdsClient
 from fastcs_ethercat.ads.constants import AdsReturnCode, IndexGroup, device_port
 from fastcs_ethercat.ads.sums import SumReadItem, SumReadResponse
@@ -26,6 +27,13 @@ MISSING = "Term 99 (EL9999).Nothing"
 
 
 Reads = tuple[Sequence[object], Sequence[object]]
+
+
+@pytest.fixture(autouse=True)
+def nothing_said_yet(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Refused sums are logged once per target in a process: each test
+    starts as a fresh process (the in-process targets share one address)."""
+    monkeypatch.setattr(client_module, "_refused_sums_said", set(), raising=False)
 
 
 async def _reads(client: AdsClient) -> Reads:
@@ -72,6 +80,28 @@ async def test_single_requests_give_what_sums_give(
     assert len(said) == 2, said
     assert any("sum reads (0xF080)" in line for line in said)
     assert any("sum read-writes (0xF082)" in line for line in said)
+
+
+async def test_refused_sums_are_said_once_per_target_not_per_reconnect(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    """Issue 25: decided once per connection, said once per target: three
+    connections (a reconnect each) to a target without sums give one line
+    per refused sum command; the later ones decide the same at debug level."""
+    target = demo_target()
+    target.set_sum_commands(False)
+    port = device_port(1)
+    decided: list[frozenset[int]] = []
+    with caplog.at_level(logging.DEBUG, logger=client_module.__name__):
+        for _ in range(3):
+            async with sim_clients(target) as clients:
+                client = await clients(str(target.system_net_id), port)
+                await _reads(client)
+                decided.append(client.single_requests)
+    said = [r for r in caplog.records if "single requests" in r.message]
+
+    assert decided == [decided[0]] * 3 and len(decided[0]) == 2
+    assert [r.levelno for r in said] == [logging.WARNING] * 2 + [logging.DEBUG] * 4
 
 
 async def test_a_sum_read_answer_from_single_reads_keeps_item_errors() -> None:

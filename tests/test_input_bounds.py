@@ -12,13 +12,21 @@ from pathlib import Path
 
 import pytest
 
-from fastcs_ethercat.bounded import MAX_ESI_BYTES
+from fastcs_ethercat.bounded import (
+    MAX_ESI_BYTES,
+    MAX_TERMINAL_YAML_BYTES,
+    MIB,
+)
 from fastcs_ethercat.chain.file import parse_chain
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.esi import build_catalog, parse_file
+from fastcs_ethercat.esi.model import MAX_PDO_BITS, MAX_PDO_ENTRY_BITS
 from fastcs_ethercat.ioc.config import load_ioc_config
-from fastcs_ethercat.terminals.files import parse_terminal_text
-from tests.conftest import loopback_env
+from fastcs_ethercat.terminals.files import parse_terminal_text, read_terminal_file
+from fastcs_ethercat.terminals.generate import terminal_from_esi
+from tests.conftest import TERMINALS_DIR, loopback_env
+from tests.test_terminals_support import cache_home
+from tests.test_terminals_support import run_cli as run_cli_here
 
 BAD = Path(__file__).resolve().parent / "data" / "esi" / "bad"
 _MEASURE = """
@@ -107,7 +115,26 @@ def test_a_200_mb_esi_file_is_refused_fast_in_bounded_memory(tmp_path: Path) -> 
     measured = run_cli("terminals", "list", "--esi", str(path))
 
     assert_one_error_line(measured, "no usable terminal type")
-    assert f"{path}: ESI file: larger than 64 MiB" in measured.stderr
+    assert f"{path}: ESI file: larger than 16 MiB" in measured.stderr
+    assert measured.cpu_s < BOUND_S
+    assert measured.rss_mb < BOUND_MB
+
+
+@e2e
+def test_an_esi_file_of_real_devices_over_the_cap_is_never_parsed(
+    tmp_path: Path,
+) -> None:
+    """24 MiB of real device descriptions (EL1084 again and again; 6x
+    Beckhoff's largest file): parsed, it would take about 12x its size in
+    memory; it is refused on its size alone, so it costs what refusing a
+    small file does."""
+    one = esi_with(tmp_path).stat().st_size
+    path = esi_with(tmp_path, copies=24 * MIB // one + 1)
+
+    measured = run_cli("terminals", "list", "--esi", str(path))
+
+    assert_one_error_line(measured, "no usable terminal type")
+    assert f"{path}: ESI file: larger than 16 MiB: refused" in measured.stderr
     assert measured.cpu_s < BOUND_S
     assert measured.rss_mb < BOUND_MB
 
@@ -120,7 +147,7 @@ def test_an_esi_member_of_a_zip_is_bounded(tmp_path: Path) -> None:
         out.writestr("big.xml", b" " * (MAX_ESI_BYTES + 1))
     catalog = build_catalog(archive, use_cache=False)
     assert len(catalog) == 0
-    assert any("larger than 64 MiB" in warning for warning in catalog.warnings)
+    assert any("larger than 16 MiB" in warning for warning in catalog.warnings)
 
 
 @e2e
@@ -153,6 +180,131 @@ def test_absurd_bit_lengths_are_one_line(
     assert_one_error_line(listed, "no usable terminal type")
     assert_one_error_line(generated, "EL1084")
     assert not (out / "EL1084.yaml").exists()
+
+
+def test_a_pdo_entry_longer_than_a_mapping_can_say_is_refused(tmp_path: Path) -> None:
+    """A PDO mapping entry gives an entry's length in one byte: 256 bits is
+    no entry (the ESI reader refuses it, so `generate` never writes it)."""
+    path = esi_with(tmp_path, str(MAX_PDO_ENTRY_BITS + 1))
+    (warning,) = parse_file(path).warnings
+    assert "BitLen of PDO entry 'Input' 256 is out of range (0 to 255)" in str(warning)
+    assert parse_file(esi_with(tmp_path, str(MAX_PDO_ENTRY_BITS))).warnings == ()
+
+
+def test_an_esi_no_terminal_file_can_describe_is_one_line(tmp_path: Path) -> None:
+    """A PDO named `Channel 300` (a sync manager takes at most 255 PDOs):
+    what `generate` makes of it would fail the terminal file's ranges, so it
+    says so in one line naming the file and device, not a traceback."""
+    path = esi_with(tmp_path)
+    path.write_text(path.read_text().replace("Channel 1<", "Channel 300<", 1))
+    (device,) = parse_file(path).devices
+
+    with pytest.raises(UserError) as error:
+        terminal_from_esi(device)
+
+    text = str(error.value)
+    assert text.startswith(f"{path}: device EL1084: no terminal file can describe")
+    assert "less than or equal to 255 (got 300)" in text and "\n" not in text
+
+
+SHIPPED = TERMINALS_DIR / "EP4374-0002.yaml"
+
+
+@pytest.mark.parametrize(
+    ("before", "after", "words"),
+    [
+        # a PDO (symbol node): at most 255 entries of 255 bits
+        (
+            "    access: rw\n    type_name: INT\n    bit_size: 16\n",
+            "    access: rw\n    type_name: INT\n    bit_size: 99999999999\n",
+            f"symbol_nodes[2].bit_size: Input should be less than or equal to "
+            f"{MAX_PDO_BITS} (got 99999999999)",
+        ),
+        # one PDO entry (member): its length is one byte of the mapping
+        (
+            "      bit_offset: 0\n      bit_size: 16\n      coe: ['0x7020:11'",
+            "      bit_offset: 0\n      bit_size: 256\n      coe: ['0x7020:11'",
+            "members[0].bit_size: Input should be less than or equal to 255",
+        ),
+        (
+            "      bit_offset: 0\n      bit_size: 16\n      coe: ['0x7020:11'",
+            "      bit_offset: 70000\n      bit_size: 16\n      coe: ['0x7020:11'",
+            f"members[0].bit_offset: Input should be less than or equal to "
+            f"{MAX_PDO_BITS}",
+        ),
+        ("    channels: [3, 4]", "    channels: [3, 256]", "channels[1]: Input"),
+        # a CoE object: as far as the ESI reader goes
+        (
+            "    type_name: UDINT\n    bit_size: 32\n    access: ro\n"
+            "    default_data: '89130000'",
+            "    type_name: UDINT\n    bit_size: 99999999999\n    access: ro\n"
+            "    default_data: '89130000'",
+            "coe_objects[0].bit_size: Input should be less than or equal to 1048576",
+        ),
+    ],
+)
+def test_terminal_file_numbers_beyond_ethercat_are_one_line(
+    tmp_path: Path, before: str, after: str, words: str
+) -> None:
+    """`terminals check` of a hand-edited file whose number EtherCAT cannot
+    have: exit 2, one line naming the file, the line of the number, the
+    field and the bound."""
+    text = SHIPPED.read_text(encoding="utf-8")
+    assert text.count(before) == 1, before
+    path = tmp_path / SHIPPED.name
+    path.write_text(text.replace(before, after), encoding="utf-8")
+    changed = after.splitlines()
+    row = next(i for i, line in enumerate(before.splitlines()) if line != changed[i])
+    line = text[: text.index(before)].count("\n") + row + 1
+
+    with cache_home(tmp_path / "cache"):
+        checked = run_cli_here("terminals", "check", str(path))
+
+    assert checked.code == 2, checked
+    (error,) = checked.err.splitlines()
+    assert error.startswith(f"error: {path}:{line}:"), (error, changed[row])
+    assert words in error, error
+    assert "terminal types OK" not in checked.out
+
+
+def test_terminals_check_of_nothing_exits_2(tmp_path: Path) -> None:
+    """A check that found no terminal type checked nothing: exit 2, one line
+    (an empty directory; a YAML file without types)."""
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    (tmp_path / "none.yaml").write_text("{}\n", encoding="utf-8")
+
+    with cache_home(tmp_path / "cache"):
+        outcomes = [
+            run_cli_here("terminals", "check", str(where))
+            for where in (empty, tmp_path / "none.yaml")
+        ]
+        shipped = run_cli_here("terminals", "check", str(SHIPPED))
+
+    for outcome in outcomes:
+        assert outcome.code == 2, outcome
+        assert outcome.out == "", outcome
+        (error,) = outcome.err.splitlines()
+        assert error.startswith("error: no terminal types found in "), error
+    assert (shipped.code, shipped.out) == (0, "1 terminal types OK\n")
+
+
+def test_a_terminal_yaml_file_has_a_size_cap(tmp_path: Path) -> None:
+    """A terminal YAML file over 8 MiB is refused before it is read (a
+    sparse file: large on paper, cheap to make); the IOC config's cap is
+    `test_ioc_config`'s."""
+    terminal = _sparse(tmp_path / "EL1084.yaml", MAX_TERMINAL_YAML_BYTES // MIB + 1)
+
+    with pytest.raises(UserError) as too_big:
+        read_terminal_file(terminal)
+    with cache_home(tmp_path / "cache"):
+        checked = run_cli_here("terminals", "check", str(terminal))
+
+    assert str(too_big.value) == (
+        f"{terminal}: terminal YAML file: larger than 8 MiB: refused"
+    )
+    assert checked.code == 2
+    assert checked.err == f"error: {too_big.value}\n"
 
 
 @e2e

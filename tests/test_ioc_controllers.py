@@ -373,6 +373,21 @@ async def test_coe_is_read_on_demand_written_and_read_back() -> None:
     assert "presentation" in io.failures
 
 
+def test_a_coe_attribute_is_named_in_one_short_line() -> None:
+    """FastCS logs a failed put with its attribute, whose reference holds the
+    CoE point: the point shows as its address and name, not every field (a
+    long ESI description and enum texts made a line of ~1 000 characters)."""
+    wordy = CoePoint(
+        "mode", 0x8000, 0x11, "DT0800EN16", 16, True, description="x" * 500,
+        enum_texts=tuple((n, f"text {n}") for n in range(50)), name="Mode",
+    )  # fmt: skip
+    (coe,) = _analog(_root(Recorder())).coe_attributes
+
+    assert repr(wordy) == "CoePoint(0x8000:11 'Mode')"
+    assert "CoePoint(0x8000:02 'Presentation')" in repr(coe)
+    assert len(repr(coe)) < 200 and "\n" not in repr(coe)
+
+
 async def test_master_status_reaches_every_terminal() -> None:
     root = _root(Recorder())
     master = root.masters[0]

@@ -24,6 +24,9 @@ SYMBOLS = 1000
 RATE_HZ = 10
 SAID = "single requests"
 VALUES = [f"ETH1:RIO1:MOD{n}:CH1:Value" for n in (2, 15, 29)]
+RECONNECTED_S = 120.0
+"""Generous: the reconnect (loss seen, rediscovery, 1 000 handles) takes
+~0.5 s here, far longer on a host loaded by other test runs."""
 
 
 def _root(ioc: IocProcess, name: str) -> str:
@@ -80,16 +83,18 @@ def test_a_target_without_sum_commands_is_polled_with_single_requests(
         post_rate = _figure(ioc, "PostRate")
         said = _said(ioc)
 
-        reconnects = _figure(ioc, "Reconnects")
-        sim.clear_faults()  # a target with sums, after a reconnect
+        sim.clear_faults()  # sums served again, found by the next reconnect
+        ioc.unread()
         sim.add_fault("drop")
-        assert wait_for(lambda: _figure(ioc, "Reconnects") > reconnects, 10)
-        assert wait_for(
+        # the IOC's own word that it reconnected: not a statistic (posted once
+        # a second, read by a caget that may time out on a loaded host)
+        back = ioc.wait_for_line(r"target back: polling again", RECONNECTED_S)
+        served = wait_for(
             lambda: (
                 _root(ioc, "ConnectionState") == "CONNECTED"
                 and _root(ioc, "InvalidPvs") == "0"
             ),
-            30,
+            RECONNECTED_S,
         )
         sums = _requests_by_group(sim, 1.0)
         said_after = _said(ioc)
@@ -99,6 +104,7 @@ def test_a_target_without_sum_commands_is_polled_with_single_requests(
         f"posted/s, requests in 2 s by group: {single}; after the reconnect, "
         f"in 1 s: {sums}"
     )
+    assert back and served
     assert all(first) and all(later), (first, later)
     assert all(a != b for a, b in zip(first, later, strict=True)), (first, later)
     assert single.get("0xF080", 0) == 0 and single.get("0xF005", 0) > 0, single

@@ -15,22 +15,32 @@ from collections.abc import Iterator
 import pytest
 
 from fastcs_ethercat.ads.client import SymbolTables
+from fastcs_ethercat.ads.constants import device_port
 from fastcs_ethercat.ads.ethercat import SlaveIdentity
 from fastcs_ethercat.ads.symbols import AdsSymbolEntry
 from fastcs_ethercat.ioc.clients import ClientPool
 from fastcs_ethercat.ioc.config import IocConfig
 from fastcs_ethercat.ioc.discovery import discover
-from fastcs_ethercat.ioc.plan import PointKind, SlaveInfo, SystemPlan, TerminalPlan
+from fastcs_ethercat.ioc.plan import (
+    MasterPlan,
+    PointKind,
+    SlaveInfo,
+    SystemPlan,
+    TerminalPlan,
+)
 from fastcs_ethercat.ioc.resolve import (
     Resolver,
     coe_points,
     group_symbols,
+    resolve_master,
     snake_case,
 )
 from fastcs_ethercat.sim.process import SimProcess
 from fastcs_ethercat.terminals import load_terminals
 from fastcs_ethercat.terminals.registry import TerminalRegistry
+from fastcs_ethercat.twincat.inprocess import sim_clients
 from tests.conftest import TERMINALS_DIR
+from tests.test_sim_model_support import demo_target
 
 CHAIN = """\
 system:
@@ -371,3 +381,69 @@ def test_points_carry_units_severities_and_descriptions(plan: SystemPlan) -> Non
     assert (
         generic["ai_inputs_channel_1_value"].description == "EL3602 AI Inputs Ch1 Value"
     )
+
+
+MASTER = "Device 1 (EtherCAT)"
+
+
+async def _demo_tables() -> SymbolTables:
+    """The demo chain's device-port tables, from the simulator's model."""
+    target = demo_target()
+    async with sim_clients(target) as clients:
+        client = await clients(str(target.system_net_id), device_port(1))
+        return await client.upload_symbols()
+
+
+def _bare(tables: SymbolTables, one_by_one: bool) -> SymbolTables:
+    """The master's own symbols without the device's name: `Inputs` (a
+    structure), or each member a symbol of its own (`Inputs.Frm0State`)."""
+    types = {t.name: t for t in tables.data_types}
+    symbols: list[AdsSymbolEntry] = []
+    for entry in tables.symbols:
+        if not entry.name.startswith(f"{MASTER}."):
+            symbols.append(entry)
+            continue
+        bare = entry.name.removeprefix(f"{MASTER}.")
+        if not one_by_one:
+            symbols.append(dataclasses.replace(entry, name=bare))
+            continue
+        for member in types[entry.type_name].sub_items:
+            symbols.append(
+                dataclasses.replace(
+                    entry,
+                    name=f"{bare}.{member.name}",
+                    index_offset=entry.index_offset + member.offset,
+                    size=member.size,
+                    data_type=member.data_type,
+                    type_name=member.type_name,
+                )
+            )
+    return dataclasses.replace(tables, symbols=symbols)
+
+
+def _master_points(tables: SymbolTables) -> dict[str, tuple[str, int, int, str]]:
+    master = MasterPlan(1, MASTER, "127.0.0.1.2.1", device_port(1))
+    config = IocConfig(prefix="TEST", target="127.0.0.1")
+    resolve_master(master, [], tables, load_terminals([TERMINALS_DIR]), config)
+    return {
+        p.attribute: (p.symbol.removeprefix(f"{MASTER}."), p.index_offset,
+                      p.byte_size, p.type_name)
+        for p in master.master_points
+    }  # fmt: skip
+
+
+@pytest.mark.parametrize("one_by_one", [False, True])
+async def test_bare_master_symbols_give_the_same_master_points(
+    one_by_one: bool,
+) -> None:
+    """The simulator serves the master's symbols as a real rack's dump shows
+    them (`Device 1 (EtherCAT).Inputs.Frm0State`); a target serving them
+    bare, as the facts file's section 7 lists them (`Inputs.Frm0State`),
+    gets the same master points, read at the same place."""
+    tables = await _demo_tables()
+    prefixed = _master_points(tables)
+    bare = _master_points(_bare(tables, one_by_one))
+
+    assert {"frm0_state", "slave_count", "dev_ctrl"} <= prefixed.keys()
+    assert prefixed["slave_count"][0] == "Inputs.SlaveCount"
+    assert bare == prefixed

@@ -261,6 +261,84 @@ async def test_an_unknown_outcome_waits_for_the_write_paths_read_back() -> None:
     assert output.shown()[1] == (8, 3, "WRITE: not written: the PLC holds 2")
 
 
+async def test_a_refused_write_ends_when_the_plc_holds_its_value_after_all() -> None:
+    """Issue 25: a put of 9 refused while the target was away, the PLC at 9
+    all along: once the target is back, the readback of 9 ends the WRITE
+    alarm (the setpoint equals the PLC); a readback of another value did
+    not."""
+    health = Health()
+    output = Output(health)
+    setpoints = Setpoints(health)
+    setpoints.follow([output.attribute])
+    await health.post(output.attribute, 9)
+    health.mark_invalid([output.attribute], COMM, Status.COMM, "lost")
+    await setpoints.failed(output.attribute, 9, "not written: target away")
+    await _settled()
+    refused = output.shown()[1]
+    setpoints.follow([output.attribute])  # the reconnect's resync
+    await health.post(output.attribute, 8)  # another value first: still refused
+    await _settled()
+    other = output.shown()[1]
+    await health.post(output.attribute, 9)
+    await _settled()
+
+    assert refused == (9, 3, "WRITE: not written: target away")
+    assert other == (9, 3, "WRITE: not written: target away")
+    assert output.shown() == ((9, 0), (9, 0, ""))
+
+
+async def test_a_refused_write_asks_for_a_fresh_readback_after_its_answer() -> None:
+    """The PLC already holds the refused value and nothing changes (the
+    poller hands on changes only): the setpoint asks for a fresh readback
+    once the put's answer has gone out; a readback landing before that (a
+    resync's first, between the refusal and the answer) leaves the refusal
+    for the client to see."""
+    health = Health()
+    output = Output(health)
+    setpoints = Setpoints(health)
+    setpoints.follow([output.attribute])
+    await health.post(output.attribute, 9)
+    rereads: list[str] = []
+    await setpoints.failed(
+        output.attribute, 9, "not written: refused", lambda: rereads.append("asked")
+    )
+    await health.post(output.attribute, 9)  # before the answer went out
+    before_answer = (output.shown()[1], list(rereads))
+    await _settled()
+    answered = (output.shown()[1], list(rereads))
+    await health.post(output.attribute, 9)  # the fresh readback asked for
+    await _settled()
+
+    assert before_answer == ((9, 3, "WRITE: not written: refused"), [])
+    assert answered == ((9, 3, "WRITE: not written: refused"), ["asked"])
+    assert output.shown()[1] == (9, 0, "")
+
+
+async def test_a_later_verdict_outranks_a_refusals_readback() -> None:
+    """A refused put of 9, then a put of 7 that succeeds: a readback of 9
+    (the PLC before the second put's value showed) no longer speaks for the
+    setpoint; nor does one for a refusal superseded by another refusal."""
+    health = Health()
+    output = Output(health)
+    setpoints = Setpoints(health)
+    setpoints.follow([output.attribute])
+    await setpoints.failed(output.attribute, 9, "not written: refused")
+    await setpoints.written(output.attribute, 7)
+    await _settled()
+    await health.post(output.attribute, 9)
+    await _settled()
+    after_written = output.shown()[1]
+    await setpoints.failed(output.attribute, 4, "not written: refused")
+    await _settled()
+    await setpoints.failed(output.attribute, 5, "not written: refused again")
+    await _settled()
+    await health.post(output.attribute, 4)
+    await _settled()
+
+    assert after_written == (7, 0, "")
+    assert output.shown()[1] == (5, 3, "WRITE: not written: refused again")
+
+
 class Link:
     """Counts what the supervisor asks of the IOC."""
 

@@ -234,9 +234,36 @@ def test_a_put_with_callback_that_was_not_delivered_reports_a_failure(
         assert rig.sim.get_symbol(ANALOG_SYMBOL) == 100
 
 
+def test_a_refused_put_of_the_plcs_own_value_does_not_stay_in_alarm(rig: Rig) -> None:
+    """Issue 25: a put of the value the PLC already holds, refused (the
+    target away; then the target answering an error): the client sees the
+    put fail, and once a readback shows the PLC's value (after the
+    reconnect; a fresh one asked for after the error) the setpoint shows it
+    with no alarm, as it equals what the PLC holds."""
+    rig.ioc.tool("caput", "-c", rig.pv(ANALOG), "100")
+    assert wait_for(lambda: rig.sim.get_symbol(ANALOG_SYMBOL) == 100, 10)
+    fine = ("100", "", "NO_ALARM")
+    rig.sim.add_fault("refuse", seconds=3)
+    assert wait_for(lambda: rig.root("ConnectionState") != "CONNECTED", 5)
+    while_away = _put_with_callback(rig, ANALOG, "100")
+    assert rig.all_back()
+    after_reconnect = wait_for(lambda: rig.setpoint(ANALOG) == fine, 10)
+    rig.sim.add_fault("error", code=1793, group=0xF005)  # writes by handle only
+    refused = _put_with_callback(rig, ANALOG, "100")
+    after_refusal = wait_for(lambda: rig.setpoint(ANALOG) == fine, 10)
+    final = rig.setpoint(ANALOG)
+
+    assert _put_status(while_away) == "WRITE", while_away
+    assert after_reconnect
+    assert _put_status(refused) == "WRITE", refused
+    assert after_refusal, final
+
+
 @pytest.mark.parametrize("landed", [True, False])
 def test_a_put_into_a_stall_is_decided_by_its_read_back(rig: Rig, landed: bool) -> None:
-    """`caput -c` 50 ms into a stall of 2 s: the write reaches the simulator
+    """`caput -c` ~0.3 s into a stall of 2 s (issue 25 asked for 50 ms;
+    where in the stall does not matter, only that the put is in flight
+    when the IOC gives the target up): the write reaches the simulator
     (it serves requests during a stall, only the answers wait), the IOC
     loses the target and closes its port (the write in flight fails: its
     outcome is unknown, TIMEOUT). Once the target answers again the
@@ -472,9 +499,9 @@ def test_online_changes_never_misdirect_reads_or_writes(rig: Rig) -> None:
             subscription.close()
     resyncs = int(rig.root("Resyncs") or 0)
     reconnects = int(rig.root("Reconnects") or 0)
-    refusals = [
-        line for line in _log(rig) if " failed: " in line and "write of" in line
-    ]
+    log = _log(rig)
+    refusals = [line for line in log if " failed: " in line and "write of" in line]
+    held = [line for line in log if "sent again after resolving" in line]
     wrong = {
         n: sorted({v for v in monitors.valid_values(n) if v != PINNED[n][1]})
         for n in PINNED
@@ -491,8 +518,8 @@ def test_online_changes_never_misdirect_reads_or_writes(rig: Rig) -> None:
         f"\n{changes} online changes, {resyncs} resyncs, {reconnects} "
         "reconnects: "
         f"{tally.done} writes done, {tally.failed} failed, "
-        f"{tally.unknown} of unknown outcome; "
-        f"{alarmed} alarmed updates of the watched PVs"
+        f"{tally.unknown} of unknown outcome, {len(held)} held through a "
+        f"change and sent again; {alarmed} alarmed updates of the watched PVs"
     )
 
     assert tally.lacking == []  # first: a put booked as done wrongly shows here
@@ -508,6 +535,7 @@ def test_online_changes_never_misdirect_reads_or_writes(rig: Rig) -> None:
     assert tally.failed == len(refusals), refusals
     assert [line for line in refusals if "target not connected" not in line] == []
     assert tally.done >= 100
+    assert held  # puts did meet a change: the hold path ran, and delivered
     assert alarmed > 0  # reads by old handles did fail, and alarmed
 
 

@@ -86,5 +86,5 @@ def test_an_unwritable_cache_is_ignored(
 
 
 def test_a_missing_file_is_a_user_error(cache_home: Path, tmp_path: Path) -> None:
-    with pytest.raises(UserError, match="no such file"):
+    with pytest.raises(UserError, match="no such terminal YAML file"):
         load_cache.read_terminal_file_cached(tmp_path / "EL9999.yaml")

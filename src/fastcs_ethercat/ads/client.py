@@ -121,6 +121,12 @@ _SUM_NAMES: Final = {
     IndexGroup.SUMUP_WRITE: "sum writes (0xF081)",
     IndexGroup.SUMUP_READ_WRITE: "sum read-writes (0xF082)",
 }
+_refused_sums_said: set[tuple[str, int]] = set()
+"""(target, sum group) whose refusal this process has logged: every new
+connection decides again (the target may have changed), and says so again
+only at debug level."""
+REFUSED_SUMS_REMEMBERED: Final = 4096
+"""Targets x groups remembered at most (a bound for a long-lived process)."""
 
 
 # -- results ----------------------------------------------------------------
@@ -355,14 +361,24 @@ class AdsClient:
                 raise
             self._no_sums.add(group)
             logger.log(
-                # TwinCAT's EtherCAT device port has no sum writes: expected
-                logging.INFO if group == IndexGroup.SUMUP_WRITE else logging.WARNING,
+                self._refused_sums_level(group),
                 "target %s has no %s (%s): single requests",
                 self.target,
                 _SUM_NAMES.get(group, f"sum 0x{group:X}"),
                 describe_return_code(error.code),
             )
             return None
+
+    def _refused_sums_level(self, group: int) -> int:
+        """Said once per target and group in a process; later (a reconnect,
+        another client) at debug level. TwinCAT's EtherCAT device port has
+        no sum writes: expected, so never a warning."""
+        said = (self.target, group)
+        if said in _refused_sums_said:
+            return logging.DEBUG
+        if len(_refused_sums_said) < REFUSED_SUMS_REMEMBERED:
+            _refused_sums_said.add(said)
+        return logging.INFO if group == IndexGroup.SUMUP_WRITE else logging.WARNING
 
     @property
     def single_requests(self) -> frozenset[int]:

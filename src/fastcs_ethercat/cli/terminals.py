@@ -771,8 +771,11 @@ def check(
         list[str], typer.Argument(metavar="PATH...", help="YAML files, dirs or globs.")
     ],
 ) -> None:
-    """Validate terminal YAML files and report how many types they hold."""
+    """Validate terminal YAML files and report how many types they hold
+    (none is an error: a check that found nothing checked nothing)."""
     registry = load_terminals(paths)
+    if not len(registry):
+        raise UserError(f"no terminal types found in {' '.join(paths)}")
     typer.echo(f"{len(registry)} terminal types OK")
 
 

@@ -34,6 +34,20 @@ ESI_INT_CHARS = 20
 """The longest spelling of an ESI number: 2**64 - 1 has 20 decimal digits."""
 MAX_ESI_BITS = 1 << 20
 """The most bits an ESI BitLen or BitSize may give (real files: under 12 000)."""
+MAX_PDO_ENTRY_BITS = 255
+"""The most bits one PDO entry can have: an entry of a PDO mapping object
+(0x1600.., 0x1A00..) is 32 bits of index (16), sub-index (8) and bit length
+(8). Beckhoff's ESI files: at most 64."""
+MAX_PDO_ENTRIES = 255
+"""The most entries one PDO can map: its mapping object's sub-index 0, the
+count, is one byte. Beckhoff's ESI files: 100 (ELM3704's samples)."""
+MAX_PDO_BITS = MAX_PDO_ENTRIES * MAX_PDO_ENTRY_BITS
+"""The most bits one PDO can hold (65 025). Beckhoff's ESI files: 3 200."""
+MAX_SM_PDOS = 255
+"""The most PDOs a sync manager can be assigned (0x1C12/0x1C13: the count
+in sub-index 0 is one byte), so the most channels a terminal's PDOs name
+and samples per cycle it can take. Beckhoff's ESI files: channels up to
+16, oversampling factors up to 128."""
 
 
 def parse_esi_int(text: str) -> int:

@@ -13,7 +13,14 @@ from __future__ import annotations
 
 from .channels import channel_template
 from .memo import ParseMemo, shared
-from .model import EsiEntry, EsiPdo, PdoDirection, new_record
+from .model import (
+    MAX_PDO_ENTRIES,
+    MAX_PDO_ENTRY_BITS,
+    EsiEntry,
+    EsiPdo,
+    PdoDirection,
+    new_record,
+)
 from .xmltext import (
     NUMBERS,
     Element,
@@ -63,7 +70,7 @@ def parse_entry(element: Element) -> EsiEntry:
         raise fail(element, f"PDO entry {name!r} has no <Index>")
     if bit_len is None:
         raise fail(element, f"PDO entry {name!r} has no <BitLen>")
-    check_bits(element, f"BitLen of PDO entry {name!r}", bit_len)
+    check_bits(element, f"BitLen of PDO entry {name!r}", bit_len, MAX_PDO_ENTRY_BITS)
     if not (0 <= index <= 0xFFFF and 0 <= subindex <= 0xFF):
         raise fail(element, f"PDO entry {name!r}: index or subindex out of range")
     return new_record(
@@ -94,6 +101,12 @@ def parse_pdo(
                 name = text_of(child)
         elif tag == "Exclude":
             excludes.append(int_of(child, "PDO Exclude"))
+    if len(entry_elements) > MAX_PDO_ENTRIES:
+        raise fail(
+            element,
+            f"PDO has {len(entry_elements)} entries, more than a PDO can map "
+            f"({MAX_PDO_ENTRIES})",
+        )
     known = memo.entries if memo else None
     entries = shared(parse_entry, entry_elements, "Entry", key, known)
     if index is None:

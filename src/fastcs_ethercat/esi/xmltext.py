@@ -86,10 +86,10 @@ def shown(text: str) -> str:
     return repr(text if len(text) <= 24 else text[:20] + "...")
 
 
-def check_bits(element: Element, what: str, bits: int) -> int:
-    """`bits` if a usable bit count (0 to `MAX_ESI_BITS`), else a placed error."""
-    if not 0 <= bits <= MAX_ESI_BITS:
-        raise fail(element, f"{what} {bits} is out of range (0 to {MAX_ESI_BITS})")
+def check_bits(element: Element, what: str, bits: int, most: int = MAX_ESI_BITS) -> int:
+    """`bits` if a usable bit count (0 to `most`), else a placed error."""
+    if not 0 <= bits <= most:
+        raise fail(element, f"{what} {bits} is out of range (0 to {most})")
     return bits
 
 

@@ -122,6 +122,12 @@ class CoePoint:
     object_name: str = ""
     """The object's ESI name (`AI Settings`): its screen group."""
 
+    def __repr__(self) -> str:
+        """Short, as `Point`'s: a failed CoE put is logged with its attribute,
+        whose reference holds this (its description and enum texts would
+        make a line of hundreds of characters)."""
+        return f"CoePoint(0x{self.index:04x}:{self.subindex:02x} {self.name!r})"
+
 
 @dataclass(frozen=True, slots=True)
 class SlaveInfo:

@@ -13,9 +13,9 @@ from __future__ import annotations
 
 import math
 from collections import defaultdict
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Collection, Iterable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import TypedDict, Unpack
+from typing import Final, TypedDict, Unpack
 
 from fastcs_ethercat.ads.client import SymbolTables
 from fastcs_ethercat.ads.constants import IndexGroup
@@ -606,6 +606,31 @@ def _coe_point(
 # -- per master ---------------------------------------------------------------
 
 
+MASTER_NODES: Final = ("Inputs", "Outputs")
+"""The master's own process data (frame and working-counter states, slave
+count, device state and control)."""
+
+
+def master_symbols(
+    master: str,
+    symbols: Sequence[AdsSymbolEntry],
+    groups: Mapping[str, list[AdsSymbolEntry]],
+    slave_names: Collection[str],
+) -> list[AdsSymbolEntry]:
+    """The master's own symbols on its device port: named under the device
+    (`Device 1 (EtherCAT).Inputs`), as a real rack's symbol dump shows them,
+    or bare (`Inputs`, or `Inputs.Frm0State` one by one), as the facts
+    file's section 7 has them: a target serving those gets its master points
+    too. A terminal called `Inputs` keeps its own symbols."""
+    found = list(groups.get(master, []))
+    bare = [node for node in MASTER_NODES if node not in slave_names]
+    if bare:
+        found += [entry for entry in symbols if entry.name in bare]
+        for node in bare:
+            found += groups.get(node, [])
+    return found
+
+
 def master_points(
     master: str, entries: Sequence[AdsSymbolEntry], types: Types
 ) -> list[Point]:
@@ -625,9 +650,10 @@ def resolve_master(
     """Fill `master` with a plan per slave; return the warnings."""
     types = {t.name: t for t in tables.data_types}
     groups = group_symbols(tables.symbols)
-    master.master_points = master_points(
-        master.name, groups.get(master.name, []), types
+    own = master_symbols(
+        master.name, tables.symbols, groups, {slave.name for slave in slaves}
     )
+    master.master_points = master_points(master.name, own, types)
     warnings: list[str] = []
     resolver = Resolver(types, registry)
     for slave in slaves:

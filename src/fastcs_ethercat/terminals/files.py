@@ -34,7 +34,7 @@ CATIO_LAYOUT_KEY = "terminal_types"
 
 def read_text(path: Path) -> str:
     """A terminal YAML file's text (bounded), or a one-line `UserError`."""
-    return read_text_bounded(path, MAX_TERMINAL_YAML_BYTES)
+    return read_text_bounded(path, MAX_TERMINAL_YAML_BYTES, what="terminal YAML file")
 
 
 def read_terminal_file(path: Path | str) -> dict[str, TerminalType]:

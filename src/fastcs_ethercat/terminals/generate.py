@@ -14,6 +14,9 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import PurePath
 
+from pydantic import ValidationError
+
+from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.esi.model import (
     EsiCoeObject,
     EsiCoeSubItem,
@@ -44,7 +47,26 @@ PROCESS_DATA_OBJECTS = range(0x6000, 0x8000)
 
 
 def terminal_from_esi(device: EsiDevice) -> TerminalType:
-    """The terminal description of one ESI device, with default selections."""
+    """The terminal description of one ESI device, with default selections;
+    `UserError` naming the device when the ESI says what no terminal file
+    can hold (a channel 300, a factor of 1 000: ranges of `terminals.model`)."""
+    try:
+        return _terminal_from_esi(device)
+    except ValidationError as error:
+        first = error.errors()[0]
+        where = ".".join(str(part) for part in first["loc"])
+        value = first.get("input")
+        shown = f" (got {value!r})" if isinstance(value, int | float | str) else ""
+        problem = f"{where}: {first['msg']}{shown}" if where else first["msg"]
+    except ValueError as error:  # check_terminal: a rule between fields broken
+        problem = str(error)
+    raise UserError(
+        f"device {device.type_name}: no terminal file can describe it: {problem}",
+        path=device.source,
+    )
+
+
+def _terminal_from_esi(device: EsiDevice) -> TerminalType:
     groups_of_pdo = _groups_of_pdos(device)
     clusters = _clusters(device.pdos, groups_of_pdo)
     over = device.oversampling

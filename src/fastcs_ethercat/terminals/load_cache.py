@@ -50,7 +50,7 @@ def code_fingerprint() -> bytes:
 
 def read_terminal_file_cached(path: Path) -> dict[str, TerminalType]:
     """Like `files.read_terminal_file`, from the cache when the bytes match."""
-    data = read_bytes_bounded(path, MAX_TERMINAL_YAML_BYTES)
+    data = read_bytes_bounded(path, MAX_TERMINAL_YAML_BYTES, what="terminal YAML file")
     key = hashlib.sha256(code_fingerprint() + data).hexdigest()
     entry = cache_root() / f"v{CACHE_FORMAT}-{key}.pickle"
     cached = _load(entry)

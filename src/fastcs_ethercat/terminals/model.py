@@ -153,6 +153,12 @@ from pydantic import (
 )
 
 from fastcs_ethercat.bounded import no_bool_for_number
+from fastcs_ethercat.esi.model import (
+    MAX_ESI_BITS,
+    MAX_PDO_BITS,
+    MAX_PDO_ENTRY_BITS,
+    MAX_SM_PDOS,
+)
 from fastcs_ethercat.terminals.names import CHANNEL, expand
 from fastcs_ethercat.terminals.yaml_style import (
     FLOW_DICT,
@@ -183,8 +189,26 @@ FastcsName = Annotated[
 ]
 """snake_case attribute name; may hold `{channel}`."""
 
+# Every number has the range EtherCAT allows it, which real files keep well
+# inside (`esi.model` says why each bound is what it is): a terminal file is
+# edited by hand, and a huge number must be one line naming it, not a
+# process image of gigabytes in the simulator or a PV nobody can serve.
+PdoBits = Annotated[int, Field(ge=1, le=MAX_PDO_BITS)]
+"""A PDO's size in bits."""
+EntryBits = Annotated[int, Field(ge=1, le=MAX_PDO_ENTRY_BITS)]
+"""One PDO entry's size."""
+CoeBits = Annotated[int, Field(ge=0, le=MAX_ESI_BITS)]
+"""A CoE object's (or sub-index's) size or offset: as far as the ESI reader
+goes (Beckhoff's dictionaries: at most 11 264 bits)."""
+Samples = Annotated[int, Field(ge=1, le=MAX_SM_PDOS)]
+"""An oversampling factor."""
+EnumValue = Annotated[int, Field(ge=-(1 << 63), le=(1 << 64) - 1)]
+"""A CoE enum value: 64 bits at most, signed or not."""
+
 HexList = Annotated[list[Hex16], FLOW_LIST]
 IntList = Annotated[list[Annotated[int, Field(ge=0)]], FLOW_LIST]
+ChannelList = Annotated[list[Annotated[int, Field(ge=0, le=MAX_SM_PDOS)]], FLOW_LIST]
+FactorList = Annotated[list[Samples], FLOW_LIST]
 CoeList = Annotated[list[CoeAddress], FLOW_LIST]
 
 
@@ -227,7 +251,7 @@ class PdoGroup(_Model):
     symbol_indices: IntList = Field(
         description="Positions in symbol_nodes of the symbols of this group."
     )
-    oversampling_factor: int | None = Field(
+    oversampling_factor: Samples | None = Field(
         default=None,
         description="Samples per cycle this group implies (ELM37xx), if any.",
     )
@@ -243,8 +267,10 @@ class SymbolMember(_Model):
     name: str = Field(description="Entry name as in the ESI; may hold {channel}.")
     fastcs_name: FastcsName = Field(description="Attribute name within the symbol.")
     type_name: str = Field(description="TwinCAT type: BIT, BIT2, INT, UDINT...")
-    bit_offset: int = Field(ge=0, description="Bit offset within the symbol.")
-    bit_size: int = Field(ge=1, description="Size in bits.")
+    bit_offset: int = Field(
+        ge=0, le=MAX_PDO_BITS, description="Bit offset within the symbol."
+    )
+    bit_size: EntryBits = Field(description="Size in bits.")
     coe: CoeList = Field(description="CoE index:subindex mapped, per channel.")
     comment: str | None = Field(default=None, description="ESI entry comment.")
     dscale: str | None = Field(
@@ -309,14 +335,14 @@ class SymbolNode(_Model):
     )
     fastcs_name: FastcsName = Field(description="Attribute/PV base name.")
     selected: bool = Field(description="Whether the IOC makes PVs for it.")
-    channels: IntList = Field(
+    channels: ChannelList = Field(
         default_factory=list, description="Channel numbers; empty: no channel."
     )
     pdo_indices: HexList = Field(description="The PDO index per channel.")
     direction: Direction = Field(description="input (TxPDO) or output (RxPDO).")
     access: SymbolAccess = Field(description="ro for inputs, rw for outputs.")
     type_name: str = Field(description="TwinCAT type name of the symbol.")
-    bit_size: int = Field(ge=1, description="PDO size in bits (one sample).")
+    bit_size: PdoBits = Field(description="PDO size in bits (one sample).")
     oversampled: bool = Field(
         default=False,
         description="Entries repeat once per sample (oversampling factor).",
@@ -338,7 +364,7 @@ class SymbolNode(_Model):
 class CoeEnumItem(_Model):
     """One value/text pair of an enumerated CoE type."""
 
-    value: int
+    value: EnumValue
     text: str
 
 
@@ -357,8 +383,8 @@ class CoeSubItem(_Model):
         "selected (written only when off).",
     )
     type_name: str
-    bit_size: int = Field(ge=0)
-    bit_offset: int = Field(default=0, ge=0)
+    bit_size: CoeBits
+    bit_offset: CoeBits = 0
     access: CoeAccess | None = None
     default_data: str | None = Field(
         default=None, description="ESI DefaultData: little-endian hex bytes."
@@ -378,7 +404,7 @@ class CoeObject(_Model):
     fastcs_name: FastcsName = Field(description="Attribute/PV base name.")
     selected: bool = Field(description="Whether the IOC exposes this object.")
     type_name: str
-    bit_size: int = Field(ge=0)
+    bit_size: CoeBits
     access: CoeAccess | None = None
     default_data: str | None = Field(
         default=None, description="ESI DefaultData: little-endian hex bytes."
@@ -401,9 +427,9 @@ class CoeObject(_Model):
 class Oversampling(_Model):
     """Samples per cycle of an oversampling terminal (EL37xx, EL47xx, ELM37xx)."""
 
-    factors: IntList = Field(description="Factors the ESI offers, ascending.")
-    default_factor: int = Field(ge=1, description="Factor of a new terminal.")
-    selected_factor: int = Field(ge=1, description="Factor configured in TwinCAT.")
+    factors: FactorList = Field(description="Factors the ESI offers, ascending.")
+    default_factor: Samples = Field(description="Factor of a new terminal.")
+    selected_factor: Samples = Field(description="Factor configured in TwinCAT.")
     pdo_indices: HexList = Field(description="PDOs holding the samples.")
     by_group: bool = Field(
         default=False,

@@ -29,7 +29,7 @@ def old_text(path: Path) -> str | None:
     """The file's current text, None if there is no file yet."""
     if not path.exists():
         return None
-    return read_text_bounded(path, MAX_TERMINAL_YAML_BYTES)
+    return read_text_bounded(path, MAX_TERMINAL_YAML_BYTES, what="terminal YAML file")
 
 
 def file_text(

@@ -494,7 +494,9 @@ class MasterController(Controller):
             why = _why(error)
             logger.error("write of %r to %s failed: %s", value, point.symbol, why)
             if attr is not None:
-                await self.setpoints.failed(attr, shown, f"not written: {why}")
+                await self.setpoints.failed(
+                    attr, shown, f"not written: {why}", self._reread(point)
+                )
             if isinstance(error, AdsError):  # its text names a handle: name the symbol
                 raise WriteError(f"{point.symbol} not written: {why}") from error
             raise
@@ -609,7 +611,9 @@ class MasterController(Controller):
                 return
             if isinstance(now, str):
                 logger.error("write to %s: %s", point.symbol, now)
-                await self.setpoints.failed(attr, shown, f"not written: {now}")
+                await self.setpoints.failed(
+                    attr, shown, f"not written: {now}", self._reread(point)
+                )
                 return
             if now is not None:
                 if now == data:
@@ -618,10 +622,25 @@ class MasterController(Controller):
                 else:
                     logger.error("write to %s: not applied (read back)", point.symbol)
                     await self.setpoints.failed(
-                        attr, shown, "not written: the PLC holds another value"
+                        attr,
+                        shown,
+                        "not written: the PLC holds another value",
+                        self._reread(point),
                     )
                 return
             await asyncio.sleep(SETTLE_POLL_S)
+
+    def _reread(self, point: Point) -> Callable[[], None]:
+        """Asks the poller of `point` (as polled then) to report its group's
+        values on its next cycle, changed or not: the readback that shows
+        whether the PLC holds a failed write's value all the same."""
+
+        def reread() -> None:
+            group = self._group_of.get(point.key)
+            if group is not None and group.poller is not None:
+                group.poller.invalidate()
+
+        return reread
 
     async def _read_back(self, point: Point, size: int) -> bytes | str | None:
         """The symbol's bytes now; None while the target cannot say (away,
