@@ -114,7 +114,7 @@ def test_an_unsupported_fastcs_version_stops_the_ioc_in_one_line(
     assert done.returncode == 2
     assert done.stderr.strip().splitlines() == [
         "error: packages: fastcs 0.99.0 is installed, fastcs-ethercat supports "
-        "fastcs>=0.14,<0.15: install the versions pyproject.toml names"
+        "fastcs>=0.14.2,<0.15: install the versions pyproject.toml names"
     ]
 
 

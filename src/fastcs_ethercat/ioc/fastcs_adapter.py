@@ -44,7 +44,7 @@ from fastcs_ethercat.ioc import dbaccess
 if TYPE_CHECKING:
     from fastcs.attributes import Attribute, AttrR
 
-SUPPORTED: Final = {"fastcs": ((0, 14), (0, 15))}
+SUPPORTED: Final = {"fastcs": ((0, 14, 2), (0, 15))}
 """Package -> (lowest version, first version not supported), as in
 pyproject.toml: the package whose private names this module uses."""
 RBV_SUFFIX: Final = "_RBV"
