@@ -31,6 +31,7 @@ from fastcs_ethercat.ioc.fastcs_adapter import (
     shape_problems,
     version_problems,
 )
+from fastcs_ethercat.process import ChildProcess
 from tests.conftest import TEST_DATA
 from tests.ioc_support import (
     START_TIMEOUT,
@@ -40,9 +41,9 @@ from tests.ioc_support import (
     ioc_env,
     new_token,
     start_ioc,
-    stop_pid,
     wait_for,
 )
+from tests.processes import wait_for_line
 
 NAMES = ("Temperature", "Mode", "Samples", "Output", "CoeGain", "Setting", "Refusing")
 CA_NAMES = (
@@ -226,23 +227,19 @@ asyncio.run(main(sys.argv[1], float(sys.argv[2])))
 def test_a_monitor_sees_an_output_record_go_into_alarm_and_out(
     ioc: IocProcess,
 ) -> None:
-    monitor = subprocess.Popen(
+    monitor = ChildProcess(
         [sys.executable, "-c", MONITOR_SCRIPT, ioc.pv("Output"), "6"],
+        "monitor",
         env=ioc.env,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.DEVNULL,
-        text=True,
     )
-    try:
-        assert monitor.stdout is not None
-        first = json.loads(monitor.stdout.readline())
+    with monitor:
+        monitor.launch()
+        wait_for_line(monitor, r"^\[", 30)  # connected: the first update
         command(ioc, "alarm Output MAJOR WRITE")
         time.sleep(0.5)
         command(ioc, "clear Output")
-        output, _ = monitor.communicate(timeout=30)
-    finally:
-        stop_pid(monitor.pid)
-    updates = [first] + [json.loads(line) for line in output.splitlines()]
+        monitor.wait(30)
+    updates = [json.loads(line) for line in monitor.lines]
 
     assert updates == [[0, 0, 5.0], [2, 2, 5.0], [0, 0, 5.0]]
 

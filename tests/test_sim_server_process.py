@@ -15,6 +15,7 @@ import pytest
 from fastcs_ethercat.process import ChildProcess, parse_ready_line
 from fastcs_ethercat.sim.process import SimProcess, SimProcessError
 from tests.conftest import REPO_ROOT
+from tests.processes import running, wait_for_line
 
 pytestmark = pytest.mark.e2e
 
@@ -141,27 +142,17 @@ time.sleep(60)
 """
 
 
-def _alive(pid: int) -> bool:
-    """True while `pid` runs (a zombie waiting for its reaper counts as gone)."""
-    try:
-        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    except FileNotFoundError:
-        return False
-    return fields[0] != "Z"
-
-
 def test_the_simulator_follows_a_parent_that_dies_without_cleaning_up() -> None:
-    parent = subprocess.Popen(
-        [sys.executable, "-c", PARENT_SCRIPT, str(DEMO_CHAIN)],
-        stdout=subprocess.PIPE,
-        text=True,
+    parent = ChildProcess(
+        [sys.executable, "-c", PARENT_SCRIPT, str(DEMO_CHAIN)], "parent"
     )
-    assert parent.stdout is not None
-    sim_pid = int(parent.stdout.readline())
-    assert _alive(sim_pid)
-    parent.send_signal(signal.SIGKILL)
-    parent.wait(10)
+    with parent:
+        parent.launch()
+        sim_pid = int(wait_for_line(parent, r"^\d+$", 60))
+        assert running(sim_pid)
+        os.kill(parent.pid, signal.SIGKILL)
+        parent.wait(10)
     deadline = time.monotonic() + 10
-    while _alive(sim_pid) and time.monotonic() < deadline:
+    while running(sim_pid) and time.monotonic() < deadline:
         time.sleep(0.05)
-    assert not _alive(sim_pid)
+    assert not running(sim_pid)
