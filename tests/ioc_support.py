@@ -28,7 +28,15 @@ from p4p.client.thread import Context
 from fastcs_ethercat.process import ChildProcess, free_port
 from fastcs_ethercat.sim.process import SimProcess
 from tests.conftest import TERMINALS_DIR, loopback_env
-from tests.processes import TOKEN_VARIABLE, new_token, processes_with_token, stop_pid
+from tests.processes import (
+    CLI,
+    TOKEN_VARIABLE,
+    new_token,
+    processes_with_token,
+    run_cli_child,
+    run_python_child,
+    stop_pid,
+)
 
 BIN = Path(sys.executable).parent
 START_TIMEOUT = 90.0
@@ -156,13 +164,7 @@ def aioca_get(ioc: IocProcess, names: Sequence[str]) -> dict[str, str]:
         " else value))\n"
         "asyncio.run(main(sys.argv[1:]))\n"
     )
-    done = subprocess.run(
-        [sys.executable, "-c", script, *names],
-        env=ioc.env,
-        capture_output=True,
-        text=True,
-        timeout=60,
-    )
+    done = run_python_child(script, *names, env=ioc.env, timeout=60)
     return dict(
         line.split(" ", 1)
         for line in done.stdout.splitlines()
@@ -185,7 +187,7 @@ def parse_fields(text: str) -> dict[str, Any]:
     return dict(item.split("=", 1) for item in text.split() if "=" in item)
 
 
-IOC_COMMAND: tuple[str, ...] = (sys.executable, "-m", "fastcs_ethercat", "ioc")
+IOC_COMMAND: tuple[str, ...] = (*CLI, "ioc")
 
 
 def write_ioc_config(
@@ -203,13 +205,7 @@ def write_ioc_config(
 
 def list_pvs_text(config: Path, env: dict[str, str], *flags: str) -> str:
     """What `ioc --config CONFIG --list-pvs FLAGS...` prints."""
-    done = subprocess.run(
-        [*IOC_COMMAND, "--config", str(config), "--list-pvs", *flags],
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
+    done = run_cli_child("ioc", "--config", config, "--list-pvs", *flags, env=env)
     assert done.returncode == 0, done.stderr[-2000:]
     assert "Traceback" not in done.stderr
     return done.stdout

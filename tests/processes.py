@@ -4,7 +4,8 @@ environment, stopped by PID.
 A process that runs alongside a test is a `fastcs_ethercat.process.
 ChildProcess` (its output read as it comes, `wait_for_line` to wait for a
 line of it); a one-shot run of the project's command line is
-`run_cli_child`, the same command the console script runs.
+`run_cli_child`, the same command the console script runs, and a one-shot
+Python client or probe `run_python_child`.
 
 Every process a test starts inherits the session's token (the conftest puts
 it in `os.environ`), and the processes of one IOC also carry a token of
@@ -109,6 +110,24 @@ def run_cli_child(
         [*CLI, *map(str, args)],
         env=env,
         cwd=cwd,
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+    )
+
+
+def run_python_child(
+    code: str,
+    *args: str,
+    env: Mapping[str, str] | None = None,
+    timeout: float = CLI_TIMEOUT_S,
+) -> subprocess.CompletedProcess[str]:
+    """`python -c CODE ARGS` in a child process, run to its end: a client
+    or probe that must not share this process's state (one CA context per
+    process, EPICS' access security, the modules a command imports)."""
+    return subprocess.run(
+        [sys.executable, "-c", code, *args],
+        env=env,
         capture_output=True,
         text=True,
         timeout=timeout,

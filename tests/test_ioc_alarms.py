@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import json
 import re
-import subprocess
 import sys
 import time
 from collections.abc import Iterator, Sequence
@@ -43,7 +42,7 @@ from tests.ioc_support import (
     start_ioc,
     wait_for,
 )
-from tests.processes import wait_for_line
+from tests.processes import run_python_child, wait_for_line
 
 NAMES = ("Temperature", "Mode", "Samples", "Output", "CoeGain", "Setting", "Refusing")
 CA_NAMES = (
@@ -110,13 +109,8 @@ def aioca_alarms(ioc: IocProcess, names: Sequence[str]) -> dict[str, list[int]]:
         " for n, v in zip(names, values)}))\n"
         "asyncio.run(main(sys.argv[1:]))\n"
     )
-    done = subprocess.run(
-        [sys.executable, "-c", script, *(ioc.pv(name) for name in names)],
-        env=ioc.env,
-        capture_output=True,
-        text=True,
-        timeout=60,
-    )
+    pvs = [ioc.pv(name) for name in names]
+    done = run_python_child(script, *pvs, env=ioc.env, timeout=60)
     by_pv = json.loads(done.stdout.strip().splitlines()[-1])
     return {name: by_pv[ioc.pv(name)] for name in names}
 

@@ -18,11 +18,16 @@ import pytest
 
 from tests.conftest import REPO_ROOT
 from tests.ioc_support import free_port, ioc_env, start_ioc
-from tests.processes import SESSION_VARIABLE, TOKEN_VARIABLE, new_token
+from tests.processes import (
+    CLI,
+    SESSION_VARIABLE,
+    TOKEN_VARIABLE,
+    new_token,
+    run_cli_child,
+)
 
 pytestmark = pytest.mark.e2e
 
-IOC = (sys.executable, "-m", "fastcs_ethercat")
 README_COE_EXAMPLE = ":ETH1:RIO21:MOD22:C8000:EnableFilter"
 """The README's CoE example (below the prefix): the demo serves it."""
 
@@ -32,21 +37,9 @@ def test_the_readme_names_the_coe_example() -> None:
     assert f"DEMO{README_COE_EXAMPLE}" in readme
 
 
-def _run(
-    *args: str, cwd: Path = REPO_ROOT, **env: str
-) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [*IOC, *args],
-        cwd=cwd,
-        env={**ioc_env(new_token()), **env},
-        capture_output=True,
-        text=True,
-        timeout=60,
-    )
-
-
 def test_a_missing_config_is_one_error_line(tmp_path: Path) -> None:
-    done = _run("ioc", "--config", str(tmp_path / "none.yaml"), "--list-pvs")
+    done = run_cli_child("ioc", "--config", tmp_path / "none.yaml", "--list-pvs",
+                         cwd=REPO_ROOT, env=ioc_env(new_token()))  # fmt: skip
 
     assert done.returncode == 2
     assert done.stderr.strip().splitlines() == [
@@ -62,7 +55,8 @@ def test_an_untested_fastcs_version_stops_the_ioc_in_one_line(tmp_path: Path) ->
     (fake / "METADATA").write_text(
         "Metadata-Version: 2.1\nName: fastcs\nVersion: 0.99.0\n"
     )
-    done = _run("ioc", "--config", "ioc/demo.yaml", PYTHONPATH=str(tmp_path))
+    env = {**ioc_env(new_token()), "PYTHONPATH": str(tmp_path)}
+    done = run_cli_child("ioc", "--config", "ioc/demo.yaml", cwd=REPO_ROOT, env=env)
 
     assert done.returncode == 2
     assert done.stderr.strip().splitlines() == [
@@ -117,15 +111,18 @@ def test_the_ioc_waiting_for_its_plc_collects_garbage(
 
 
 def test_a_bad_flag_value_names_the_flag() -> None:
-    done = _run("ioc", "--config", "ioc/demo.yaml", "--poll-rate", "0", "--list-pvs")
+    done = run_cli_child("ioc", "--config", "ioc/demo.yaml", "--poll-rate", "0",
+                         "--list-pvs", cwd=REPO_ROOT,
+                         env=ioc_env(new_token()))  # fmt: skip
 
     assert done.returncode == 2
     assert "poll_rate_hz (command line)" in done.stderr.splitlines()[-1]
 
 
 def test_a_target_that_does_not_answer_is_a_user_error() -> None:
-    done = _run("ioc", "--config", "ioc/demo.yaml", "--target", "127.0.0.1:1",
-                "--list-pvs")  # fmt: skip
+    done = run_cli_child("ioc", "--config", "ioc/demo.yaml", "--target",
+                         "127.0.0.1:1", "--list-pvs", cwd=REPO_ROOT,
+                         env=ioc_env(new_token()))  # fmt: skip
 
     assert done.returncode == 2
     assert (
@@ -140,7 +137,7 @@ def test_demo_prints_lines_that_read_numbers_and_text_from_a_bare_shell(
 ) -> None:
     token = new_token()
     prefix = f"DM{token[:6].upper()}"
-    demo = start_ioc([*IOC, "demo", "--prefix", prefix], prefix, ioc_env(token), token)
+    demo = start_ioc([*CLI, "demo", "--prefix", prefix], prefix, ioc_env(token), token)
     try:
         listed = demo.wait_for_line(r"^demo: \d+ PVs listed in ", 90)
         lines = [demo.wait_for_line(r"^demo: (try|text) ", 30) for _ in range(3)]
