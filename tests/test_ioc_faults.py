@@ -58,11 +58,13 @@ COE_PATH = (
     "^Coe ai_settings_8000_user_scale_offset"
 )
 LOSS_LIMIT_S = 8.0
-"""Loss to INVALID with COMM, a generous bound of the behaviour on a busy
-host: the target (1 s) is `fastcs-ethercat bench --only faults`'s figure."""
+"""A fault to its PVs INVALID (a lost target, a slave out of OP, a lost link,
+PDOs gone in an online change), a generous bound of the behaviour on a busy
+host: the targets (1 s for a lost target, 2.5 s for a slave's state or link,
+2 s for PDOs gone) are `fastcs-ethercat bench --only faults`'s figures."""
 RECOVERY_LIMIT_S = 15.0
-"""Target back to PVs valid and updating again, a generous bound: the target
-(5 s) is the benchmark's."""
+"""The fault gone to PVs valid and updating again, a generous bound: the
+targets (5 s; 3 s for a slave back in OP) are the benchmark's."""
 
 
 @dataclass
@@ -400,7 +402,7 @@ def test_coe_values_go_invalid_on_loss_and_are_read_again(rig: Rig) -> None:
 def test_slave_in_preop_alarms_only_its_points(rig: Rig) -> None:
     start = time.monotonic()
     rig.sim.add_fault("slave_state", state="PREOP", name="Term 5 (EL3104)")
-    loss = rig.wait_invalid(SINE, start, timeout=5)
+    loss = rig.wait_invalid(SINE, start)
     rig.sim.set_symbol(STEADY_SYMBOL, 4242)
     steady = rig.pv(STEADY)
     follows = wait_for(lambda: caget(rig.ioc, steady).get(steady) == "4242", 10)
@@ -412,17 +414,17 @@ def test_slave_in_preop_alarms_only_its_points(rig: Rig) -> None:
     rig.figures["preop_alarm"] = loss
     rig.figures["preop_recovery"] = back
 
-    assert loss < 2.5  # master diagnostics are read once a second
+    assert loss < LOSS_LIMIT_S
     assert follows and steady_severity == 0
     assert state[rig.pv("ETH1:RIO1:MOD5:AlState")] == "PREOP"
-    assert back < 3.0
+    assert back < RECOVERY_LIMIT_S
 
 
 @pytest.mark.e2e
 def test_lost_link_alarms_only_that_slave(rig: Rig) -> None:
     start = time.monotonic()
     rig.sim.add_fault("link_lost", name="Term 22 (EL3104)")
-    loss = rig.wait_invalid(STEADY, start, timeout=5)
+    loss = rig.wait_invalid(STEADY, start)
     lost = time.monotonic()
     time.sleep(1.0)
     sine_moving = rig.watch.count_since(rig.pv(SINE), lost)
@@ -430,7 +432,7 @@ def test_lost_link_alarms_only_that_slave(rig: Rig) -> None:
     steady_severity = rig.watch.severity(rig.pv(STEADY))
     rig.figures["link_lost_alarm"] = loss
 
-    assert loss < 2.5
+    assert loss < LOSS_LIMIT_S
     assert sine_moving > 0  # the other slave's values keep coming, valid
     assert sine_severity == 0
     assert steady_severity == INVALID  # and the lost one stays in alarm
@@ -524,7 +526,7 @@ def test_online_change_of_pdo_groups_alarms_only_what_went(rig: Rig) -> None:
     rig.figures["pdo_change_alarm"] = gone
     rig.figures["pdo_change_back"] = back
 
-    assert gone < 2.0
+    assert gone < LOSS_LIMIT_S
     assert "served points gone" in changes
     assert follows and steady_severity == 0
     assert back < RECOVERY_LIMIT_S
