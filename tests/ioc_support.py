@@ -67,10 +67,6 @@ class IocProcess:
     """Lines read by `wait_for_line` and `unread`, each with its newline."""
     figures: dict[str, float] = field(default_factory=dict)
 
-    @property
-    def process(self) -> subprocess.Popen[str]:
-        return self.child.popen
-
     def pv(self, name: str) -> str:
         return f"{self.prefix}:{name}"
 
@@ -83,7 +79,7 @@ class IocProcess:
     def wait_for_line(self, pattern: str, timeout: float) -> str:
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
-            exited = self.process.poll() is not None
+            exited = self.child.returncode is not None
             for line in self.child.lines[len(self.output) :]:
                 self.output.append(f"{line}\n")
                 if re.search(pattern, line):
@@ -289,9 +285,10 @@ def served_ioc(
 def command(ioc: IocProcess, line: str) -> int:
     """Send one line to a test IOC that takes commands (`start_ioc(...,
     commands=True)`); the number it answers with."""
-    assert ioc.process.stdin is not None
-    ioc.process.stdin.write(line + "\n")
-    ioc.process.stdin.flush()
+    stdin = ioc.child.stdin
+    assert stdin is not None, "started without commands=True"
+    stdin.write(line + "\n")
+    stdin.flush()
     answer = ioc.wait_for_line(r"^(done|failed) ", 30)
     assert answer.startswith("done "), answer
     return int(answer.split()[2])

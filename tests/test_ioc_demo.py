@@ -133,8 +133,8 @@ def demo(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Demo]:
             yield Demo(sim, ioc, listings, pvs, screens, figures)
         finally:
             ioc.stop()
-            if ioc.process.poll() is None:
-                stop_pid(ioc.process.pid)
+            if ioc.child.returncode is None:
+                stop_pid(ioc.child.pid)
 
 
 @pytest.mark.perf
@@ -527,8 +527,8 @@ def test_error_bit_turns_its_status_pv_major_with_the_value(demo: Demo) -> None:
         demo.sim.set_symbol(overrange, 0)
         cleared = _next_event(monitor, "False", 10)
     finally:
-        stop_pid(monitor.process.pid)
-        monitor.process.wait(5)
+        stop_pid(monitor.child.pid)
+        monitor.child.wait(5)
     after = caget(demo.ioc, "-a", error_pv, overrange_pv)
     stamp = time.mktime(time.strptime(raised["stamp"][:19], "%Y-%m-%d %H:%M:%S"))
     stamp += float("0" + raised["stamp"][19:])
@@ -607,6 +607,6 @@ def test_deviocstats_names_and_the_heartbeat(demo: Demo) -> None:
     assert 0 <= float(later[p("IOC_CPU_LOAD")]) <= 100
     assert 20e6 < float(later[p("MEM_USED")]) < 4096e6  # bytes, as devIocStats
     assert int(later[p("START_CNT")]) == int(start_count) == 1
-    assert int(pid) == demo.ioc.process.pid and int(count) >= 1
+    assert int(pid) == demo.ioc.child.pid and int(count) >= 1
     assert abs(time.time() - float(stamp)) < 10
     assert list((demo.screens.parent / "runtime" / "chains").glob("*.yaml"))

@@ -231,7 +231,7 @@ def clean(request: pytest.FixtureRequest) -> Iterator[None]:
 
 def _outage(rig: Rig, name: str, kind: str, hold: float, **params: Any) -> None:
     """Inject `kind`, expect every PV INVALID, clear after `hold`, expect all back."""
-    pid = rig.ioc.process.pid
+    pid = rig.ioc.child.pid
     reconnects = int(rig.root("Reconnects"))
     start = time.monotonic()
     rig.sim.add_fault(kind, **params)
@@ -251,7 +251,7 @@ def _outage(rig: Rig, name: str, kind: str, hold: float, **params: Any) -> None:
     assert max(loss, steady_loss) < LOSS_LIMIT_S
     assert reconnected
     assert back < RECOVERY_LIMIT_S
-    assert rig.ioc.process.poll() is None and rig.ioc.process.pid == pid
+    assert rig.ioc.child.returncode is None and rig.ioc.child.pid == pid
 
 
 @pytest.mark.e2e
@@ -374,7 +374,7 @@ def test_coe_values_go_invalid_on_loss_and_are_read_again(rig: Rig) -> None:
     coe, readback = rig.pv(COE), rig.pv(COE + "_RBV")
     rig.ioc.tool("caput", coe, "77")
     written = wait_for(lambda: caget(rig.ioc, readback).get(readback) == "77", 10)
-    pid = rig.ioc.process.pid
+    pid = rig.ioc.child.pid
 
     old = rig.sim
     stopped = time.monotonic()
@@ -395,7 +395,7 @@ def test_coe_values_go_invalid_on_loss_and_are_read_again(rig: Rig) -> None:
     assert "INVALID" in alarm and "COMM" in alarm, alarm
     assert value == 0  # the restarted slave's default, read again
     assert back < RECOVERY_LIMIT_S
-    assert rig.ioc.process.pid == pid and rig.ioc.process.poll() is None
+    assert rig.ioc.child.pid == pid and rig.ioc.child.returncode is None
 
 
 @pytest.mark.e2e
@@ -463,7 +463,7 @@ def test_lost_link_is_judged_per_port(rig: Rig) -> None:
 
 @pytest.mark.e2e
 def test_online_change_resolves_again_without_restart(rig: Rig) -> None:
-    pid = rig.ioc.process.pid
+    pid = rig.ioc.child.pid
     version = int(rig.root("SymbolVersion"))
     start = time.monotonic()
     rig.sim.add_fault("online_change")
@@ -475,7 +475,7 @@ def test_online_change_resolves_again_without_restart(rig: Rig) -> None:
     rig.figures["online_change_resolved"] = resolved
 
     assert bumped and follows
-    assert rig.ioc.process.pid == pid and rig.ioc.process.poll() is None
+    assert rig.ioc.child.pid == pid and rig.ioc.child.returncode is None
 
 
 @pytest.mark.e2e
@@ -672,7 +672,7 @@ def test_target_restarted_with_another_chain_keeps_unchanged_terminals(
         encoding="utf-8",
     )
     term20 = "ETH1:RIO18:MOD20:AlState"
-    pid = rig.ioc.process.pid
+    pid = rig.ioc.child.pid
 
     stopped = _restart_sim(rig, changed)
     try:
@@ -697,4 +697,4 @@ def test_target_restarted_with_another_chain_keeps_unchanged_terminals(
     assert rig.pv(term20) in caget(rig.ioc, rig.pv(term20))
     assert follows
     assert cleared
-    assert rig.ioc.process.pid == pid and rig.ioc.process.poll() is None
+    assert rig.ioc.child.pid == pid and rig.ioc.child.returncode is None

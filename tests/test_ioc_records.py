@@ -98,8 +98,8 @@ def rack(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Rack]:
             yield rack
         finally:
             ioc.stop()
-            if ioc.process.poll() is None:
-                stop_pid(ioc.process.pid)
+            if ioc.child.returncode is None:
+                stop_pid(ioc.child.pid)
 
 
 def _reset(rack: Rack) -> None:
@@ -174,8 +174,8 @@ def _events(rack: Rack, mask: str, during: Callable[[], None]) -> list[str]:
         during()
         time.sleep(0.5)
     finally:
-        stop_pid(monitor.process.pid)
-        monitor.process.wait(5)
+        stop_pid(monitor.child.pid)
+        monitor.child.wait(5)
     monitor.unread()  # into its output
     return [line for line in monitor.output if rack.value in line]
 

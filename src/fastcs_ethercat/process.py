@@ -74,6 +74,9 @@ class ChildProcess:
         self.env = dict(env) if env is not None else None
         self.stdin_pipe = stdin_pipe
         """Hold the child's stdin: a child that exits at EOF follows us."""
+        self.stdin: IO[str] | None = None
+        """The child's stdin when held: what is written reaches the child;
+        closed at `stop` (EOF)."""
         self.merge_stderr = merge_stderr
         """stderr into `lines` with stdout, in order (tests that read the
         log), not into a temporary file."""
@@ -100,6 +103,7 @@ class ChildProcess:
             text=True,
             env=self.env,
         )
+        self.stdin = self._process.stdin
         self._reader = threading.Thread(target=self._read_stdout, daemon=True)
         self._reader.start()
 
@@ -133,12 +137,6 @@ class ChildProcess:
                     self.fields = fields
                     self.ready_at = time.monotonic()
             self.lines.append(line)
-
-    @property
-    def popen(self) -> subprocess.Popen[str]:
-        """The running child (its stdin, when held)."""
-        assert self._process is not None, "not started"
-        return self._process
 
     @property
     def pid(self) -> int:
@@ -177,8 +175,8 @@ class ChildProcess:
         process = self._process
         if process is None:
             return None
-        if process.stdin is not None:
-            process.stdin.close()
+        if self.stdin is not None:
+            self.stdin.close()
         if process.poll() is None:
             process.send_signal(signal.SIGTERM)
             try:

@@ -364,11 +364,6 @@ class AdsClient:
             )
             return None
 
-    @property
-    def single_requests(self) -> frozenset[int]:
-        """The sum groups this target refused (on this connection)."""
-        return frozenset(self._no_sums)
-
     # -- sum commands ----------------------------------------------------------
 
     async def sum_read(
