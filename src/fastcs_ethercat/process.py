@@ -10,7 +10,8 @@ starts a command, keeps reading its output (so it never blocks on a full
 pipe), waits for its ready line and stops it (SIGTERM, then SIGKILL) by PID.
 The simulator (`sim.process`), the benchmarks, the demo and the tests all use
 these, so there is one protocol and one way to launch; `free_port` gives
-them the loopback ports they serve on.
+them the loopback ports they serve on (and the editor its port on the host
+it is told).
 """
 
 from __future__ import annotations
@@ -200,19 +201,20 @@ class ChildProcess:
         self.close()
 
 
-def free_port(*, tcp: bool, udp: bool) -> int:
-    """A loopback port free right now for TCP and/or UDP (for a child to serve on)."""
+def free_port(*, tcp: bool, udp: bool, host: str = LOOPBACK) -> int:
+    """A port of `host` (loopback unless told) free right now for TCP and/or
+    UDP: for a child to serve on, or a server that is told `--port 0`."""
     for _ in range(100):
         with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
-            probe.bind((LOOPBACK, 0))
+            probe.bind((host, 0))
             port = int(probe.getsockname()[1])
         kinds = [socket.SOCK_STREAM] * tcp + [socket.SOCK_DGRAM] * udp
         with contextlib.ExitStack() as held:
             try:
                 for kind in kinds:
                     sock = held.enter_context(socket.socket(socket.AF_INET, kind))
-                    sock.bind((LOOPBACK, port))
+                    sock.bind((host, port))
             except OSError:
                 continue
         return port
-    raise OSError("no free loopback port")
+    raise OSError(f"no free port on {host}")
