@@ -147,7 +147,7 @@ def bench_size(count: int, runs: int) -> None:
     ]
     all_changed = statistics.median(_alternate(layout, same, full) for _ in range(runs))
     print(
-        f"{count:>6} points  {layout.item_count:>5} items  "
+        f"{count:>6} points  {sum(len(c.items) for c in layout.chunks):>5} items  "
         f"{len(layout.chunks):>3} requests/cycle  "
         f"decode+diff: unchanged {unchanged * 1e3:7.3f} ms  "
         f"1% changed {one_percent * 1e3:7.3f} ms  "
@@ -188,9 +188,9 @@ def bench_live(runs: int) -> None:
                 started = time.perf_counter()
                 await poller.poll_once()
                 times.append(time.perf_counter() - started)
+            items = sum(len(chunk.items) for chunk in poller.layout.chunks)
             print(
-                f"live demo chain: {len(points)} points, "
-                f"{poller.layout.item_count} items, median cycle "
+                f"live demo chain: {len(points)} points, {items} items, median cycle "
                 f"{statistics.median(times) * 1e3:.3f} ms over {runs} cycles"
             )
 

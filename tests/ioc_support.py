@@ -28,7 +28,15 @@ from p4p.client.thread import Context
 from fastcs_ethercat.process import ChildProcess, free_port
 from fastcs_ethercat.sim.process import SimProcess
 from tests.conftest import TERMINALS_DIR, loopback_env
-from tests.processes import TOKEN_VARIABLE, new_token, processes_with_token, stop_pid
+from tests.processes import (
+    CLI,
+    TOKEN_VARIABLE,
+    new_token,
+    processes_with_token,
+    run_cli_child,
+    run_python_child,
+    stop_pid,
+)
 
 BIN = Path(sys.executable).parent
 START_TIMEOUT = 90.0
@@ -59,10 +67,6 @@ class IocProcess:
     """Lines read by `wait_for_line` and `unread`, each with its newline."""
     figures: dict[str, float] = field(default_factory=dict)
 
-    @property
-    def process(self) -> subprocess.Popen[str]:
-        return self.child.popen
-
     def pv(self, name: str) -> str:
         return f"{self.prefix}:{name}"
 
@@ -75,7 +79,7 @@ class IocProcess:
     def wait_for_line(self, pattern: str, timeout: float) -> str:
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
-            exited = self.process.poll() is not None
+            exited = self.child.returncode is not None
             for line in self.child.lines[len(self.output) :]:
                 self.output.append(f"{line}\n")
                 if re.search(pattern, line):
@@ -158,13 +162,7 @@ def aioca_get(ioc: IocProcess, names: Sequence[str]) -> dict[str, str]:
         " else value))\n"
         "asyncio.run(main(sys.argv[1:]))\n"
     )
-    done = subprocess.run(
-        [sys.executable, "-c", script, *names],
-        env=ioc.env,
-        capture_output=True,
-        text=True,
-        timeout=60,
-    )
+    done = run_python_child(script, *names, env=ioc.env, timeout=60)
     return dict(
         line.split(" ", 1)
         for line in done.stdout.splitlines()
@@ -187,7 +185,7 @@ def parse_fields(text: str) -> dict[str, Any]:
     return dict(item.split("=", 1) for item in text.split() if "=" in item)
 
 
-IOC_COMMAND: tuple[str, ...] = (sys.executable, "-m", "fastcs_ethercat", "ioc")
+IOC_COMMAND: tuple[str, ...] = (*CLI, "ioc")
 
 
 def write_ioc_config(
@@ -205,13 +203,7 @@ def write_ioc_config(
 
 def list_pvs_text(config: Path, env: dict[str, str], *flags: str) -> str:
     """What `ioc --config CONFIG --list-pvs FLAGS...` prints."""
-    done = subprocess.run(
-        [*IOC_COMMAND, "--config", str(config), "--list-pvs", *flags],
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
+    done = run_cli_child("ioc", "--config", config, "--list-pvs", *flags, env=env)
     assert done.returncode == 0, done.stderr[-2000:]
     assert "Traceback" not in done.stderr
     return done.stdout
@@ -295,9 +287,10 @@ def served_ioc(
 def command(ioc: IocProcess, line: str) -> int:
     """Send one line to a test IOC that takes commands (`start_ioc(...,
     commands=True)`); the number it answers with."""
-    assert ioc.process.stdin is not None
-    ioc.process.stdin.write(line + "\n")
-    ioc.process.stdin.flush()
+    stdin = ioc.child.stdin
+    assert stdin is not None, "started without commands=True"
+    stdin.write(line + "\n")
+    stdin.flush()
     answer = ioc.wait_for_line(r"^(done|failed) ", 30)
     assert answer.startswith("done "), answer
     return int(answer.split()[2])

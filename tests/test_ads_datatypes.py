@@ -117,7 +117,8 @@ def test_layout_written_out_by_hand() -> None:
     assert decoded.sub_items[0].name == "V"
     assert decoded.sub_items[0].offset == 2
     assert decoded.array_dimensions == (ArrayDimension(1, 3),)
-    assert decoded.array_dimensions[0].upper_bound == 3
+    (dimension,) = decoded.array_dimensions
+    assert dimension.lower_bound + dimension.element_count - 1 == 3  # ARRAY [1..3]
 
 
 @given(entries)

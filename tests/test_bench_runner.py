@@ -197,12 +197,21 @@ def test_fault_timings_are_judged_against_their_targets() -> None:
     lines = fault_lines(
         {
             "stall": {"loss_s": 0.7, "recovery_s": 6.2},
+            "slave_preop": {"loss_s": 1.8, "recovery_s": 3.5},
+            "link_lost": {"loss_s": 2.6, "recovery_s": 4.0},
+            "pdo_change": {"loss_s": 1.9, "recovery_s": 0.8},
             "plc_appears": {"served_invalid": True, "live_s": 1.2},
         }
     )
     assert lines == [
         "fault stall: INVALID in 0.7 s  [target met],"
         " valid again in 6.2 s  [target MISSED]",
+        "fault slave_preop: INVALID in 1.8 s  [target met],"
+        " valid again in 3.5 s  [target MISSED]",
+        "fault link_lost: INVALID in 2.6 s  [target MISSED],"
+        " valid again in 4.0 s  [target met]",
+        "fault pdo_change: INVALID in 1.9 s  [target met],"
+        " valid again in 0.8 s  [target met]",
         "PLC appears after start: live in 1.2 s  [target met]",
     ]
     assert fault_lines({"error": "TimeoutError: no"}) == [

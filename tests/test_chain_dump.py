@@ -4,7 +4,6 @@ read back into a chain file that plays the same rack."""
 from __future__ import annotations
 
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -15,21 +14,15 @@ from fastcs_ethercat.terminals.loader import load_terminals
 from tests.chain_support import played
 from tests.conftest import REPO_ROOT, TERMINALS_DIR, loopback_env
 from tests.ioc_support import free_port
+from tests.processes import run_cli_child
 
 pytestmark = pytest.mark.e2e
 
 DEMO_CHAIN = REPO_ROOT / "ioc" / "demo-chain.yaml"
-CLI = (sys.executable, "-m", "fastcs_ethercat")
 
 
 def dump(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [*CLI, "chain", "dump", *args],
-        env=loopback_env(),
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
+    return run_cli_child("chain", "dump", *args, env=loopback_env())
 
 
 def test_the_demo_chain_dumps_to_a_chain_that_plays_the_same_rack(

@@ -3,53 +3,29 @@
 from __future__ import annotations
 
 import os
-import subprocess
-import sys
 
 import pytest
 
 from fastcs_ethercat import __version__
+from tests.processes import run_cli_child, run_python_child
 
 pytestmark = pytest.mark.e2e
 
 
 def test_version_flag_prints_version() -> None:
-    done = subprocess.run(
-        [
-            sys.executable,
-            "-c",
-            "from fastcs_ethercat.cli import app; app()",
-            "--version",
-        ],
-        capture_output=True,
-        text=True,
-    )
+    done = run_cli_child("--version")
     assert done.returncode == 0
     assert done.stdout.strip() == f"fastcs-ethercat {__version__}"
 
 
 def test_unknown_command_exits_nonzero_without_traceback() -> None:
-    done = subprocess.run(
-        [
-            sys.executable,
-            "-c",
-            "from fastcs_ethercat.cli import app; app()",
-            "no-such-command",
-        ],
-        capture_output=True,
-        text=True,
-    )
+    done = run_cli_child("no-such-command")
     assert done.returncode != 0
     assert "Traceback" not in done.stderr
 
 
 def _help(*command: str) -> str:
-    done = subprocess.run(
-        [sys.executable, "-m", "fastcs_ethercat", *command, "--help"],
-        capture_output=True,
-        text=True,
-        env={**os.environ, "COLUMNS": "120"},
-    )
+    done = run_cli_child(*command, "--help", env={**os.environ, "COLUMNS": "120"})
     assert done.returncode == 0, done.stderr
     return done.stdout
 
@@ -95,11 +71,7 @@ def test_bench_and_terminals_share_one_esi_default() -> None:
 
 
 def test_a_bad_log_level_is_one_error_not_a_traceback() -> None:
-    done = subprocess.run(
-        [sys.executable, "-m", "fastcs_ethercat", "--log-level", "loud", "ioc"],
-        capture_output=True,
-        text=True,
-    )
+    done = run_cli_child("--log-level", "loud", "ioc")
 
     assert done.returncode == 2
     assert "Traceback" not in done.stderr
@@ -107,9 +79,7 @@ def test_a_bad_log_level_is_one_error_not_a_traceback() -> None:
 
 
 def test_ioc_without_a_config_says_what_to_give() -> None:
-    done = subprocess.run(
-        [sys.executable, "-m", "fastcs_ethercat", "ioc"], capture_output=True, text=True
-    )
+    done = run_cli_child("ioc")
 
     assert done.returncode == 2
     assert done.stderr.strip().splitlines() == [
@@ -122,11 +92,7 @@ def test_root_help_lists_every_command_in_order_and_typos_get_a_suggestion() -> 
     listed = [
         line.split()[0] for line in _help().split("Commands:")[1].splitlines()[1:]
     ]
-    typo = subprocess.run(
-        [sys.executable, "-m", "fastcs_ethercat", "terminal"],
-        capture_output=True,
-        text=True,
-    )
+    typo = run_cli_child("terminal")
 
     names = ["demo", "sim", "bench", "init", "terminals", "ioc", "chain"]
     assert listed == names
@@ -148,8 +114,6 @@ except SystemExit as exit:
               "fastcs_ethercat.commission", "fastcs_ethercat.cli.init")
     print(exit.code, *(name in sys.modules for name in unused))
 """
-    done = subprocess.run(
-        [sys.executable, "-c", probe], capture_output=True, text=True, check=False
-    )
+    done = run_python_child(probe)
 
     assert done.stdout.split() == ["2", *["False"] * 6], done.stderr

@@ -17,7 +17,9 @@ import pytest
 from fastcs_ethercat.ads import client as client_module
 from fastcs_ethercat.ads.client import AdsClient
 from fastcs_ethercat.ads.constants import AdsReturnCode, IndexGroup, device_port
+from fastcs_ethercat.ads.frames import AmsPacket
 from fastcs_ethercat.ads.sums import SumReadItem, SumReadResponse
+from fastcs_ethercat.sim.counters import RequestCounters
 from fastcs_ethercat.twincat.inprocess import sim_clients
 from fastcs_ethercat.twincat.target import SimTarget
 from tests.test_sim_model_support import EL3104_COMPACT, demo_target
@@ -44,30 +46,54 @@ async def _reads(client: AdsClient) -> Reads:
     return handles, values
 
 
-async def _both_ways(target: SimTarget) -> tuple[Reads, Reads]:
+def counted(target: SimTarget, monkeypatch: pytest.MonkeyPatch) -> RequestCounters:
+    """The requests `target` answers from now on, by command and index group."""
+    counters = RequestCounters()
+    handle = target.handle
+
+    def counting(packet: AmsPacket) -> AmsPacket | None:
+        counters.count_request(packet)
+        return handle(packet)
+
+    monkeypatch.setattr(target, "handle", counting)
+    return counters
+
+
+SUM_GROUPS = (IndexGroup.SUMUP_READ, IndexGroup.SUMUP_READ_WRITE)
+"""The sum commands `_reads` uses: 0xF082 for the handles, 0xF080 to read."""
+
+
+def sums_asked(counters: RequestCounters) -> list[int]:
+    return [counters.by_group[group] for group in SUM_GROUPS]
+
+
+async def _both_ways(
+    target: SimTarget, monkeypatch: pytest.MonkeyPatch
+) -> tuple[Reads, Reads]:
     port = device_port(1)
     async with sim_clients(target) as clients:
         with_sums = await _reads(await clients(str(target.system_net_id), port))
     target.set_sum_commands(False)
+    counters = counted(target, monkeypatch)
     async with sim_clients(target) as clients:
         client = await clients(str(target.system_net_id), port)
         single = await _reads(client)
-        assert client.single_requests == {
-            IndexGroup.SUMUP_READ,
-            IndexGroup.SUMUP_READ_WRITE,
-        }
+        await _reads(client)
+    assert sums_asked(counters) == [1, 1]  # refused once each, then never asked
     return with_sums, single
 
 
 async def test_single_requests_give_what_sums_give(
-    caplog: pytest.LogCaptureFixture,
+    caplog: pytest.LogCaptureFixture, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """Handles (and a missing symbol's own error) and values by handle are
     the same from single requests as from sums; each refused sum command is
     logged once, however many requests follow."""
     target = demo_target()
     with caplog.at_level(logging.WARNING):
-        (handles, values), (single_handles, single_values) = await _both_ways(target)
+        (handles, values), (single_handles, single_values) = await _both_ways(
+            target, monkeypatch
+        )
     said = [r.getMessage() for r in caplog.records if "single requests" in r.message]
 
     assert [type(h) for h in single_handles] == [type(h) for h in handles]
@@ -91,16 +117,13 @@ async def test_refused_sums_are_said_once_per_target_not_per_reconnect(
     target = demo_target()
     target.set_sum_commands(False)
     port = device_port(1)
-    decided: list[frozenset[int]] = []
     with caplog.at_level(logging.DEBUG, logger=client_module.__name__):
         for _ in range(3):
             async with sim_clients(target) as clients:
                 client = await clients(str(target.system_net_id), port)
                 await _reads(client)
-                decided.append(client.single_requests)
     said = [r for r in caplog.records if "single requests" in r.message]
 
-    assert decided == [decided[0]] * 3 and len(decided[0]) == 2
     assert [r.levelno for r in said] == [logging.WARNING] * 2 + [logging.DEBUG] * 4
 
 
@@ -128,21 +151,29 @@ async def test_a_sum_read_answer_from_single_reads_keeps_item_errors() -> None:
     assert decoded.data[2] == b"\0\0"
 
 
-async def test_sums_again_on_a_new_connection() -> None:
+async def test_sums_again_on_a_new_connection(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
     """The decision is per connection: a client of a new connection to a
     target that serves sums again uses them."""
     target = demo_target()
+    counters = counted(target, monkeypatch)
     target.set_sum_commands(False)
     port = device_port(1)
     async with sim_clients(target) as clients:
         client = await clients(str(target.system_net_id), port)
         await _reads(client)
-        assert client.single_requests
+        await _reads(client)
+        refused = sums_asked(counters)
     target.set_sum_commands(True)
     async with sim_clients(target) as clients:
         client = await clients(str(target.system_net_id), port)
         await _reads(client)
-        assert client.single_requests == frozenset()
+        await _reads(client)
+        served = sums_asked(counters)
+
+    assert refused == [1, 1]  # each refused once, then never asked again
+    assert served == [3, 3]  # and both reads of the new connection in sums
 
 
 @pytest.mark.parametrize("size", [8, 16, 20])

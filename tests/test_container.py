@@ -238,7 +238,7 @@ def test_ioc_in_the_image_serves_the_host_and_stops_on_sigterm(
             wait_for(lambda: not _alive(pid), 30)
             stopped_in = time.monotonic() - stopping
             print(f"SIGTERM to exit of the IOC: {stopped_in:.2f} s")
-            ioc.process.wait(60)  # podman then removes the container
+            ioc.child.wait(60)  # podman then removes the container
         finally:
             subprocess.run([PODMAN, "rm", "--force", name], capture_output=True)
             ioc.stop()

@@ -19,6 +19,7 @@ from packaging.requirements import Requirement
 
 from fastcs_ethercat.ioc.config import config_schema_text, load_ioc_config
 from tests.conftest import REPO_ROOT, SCREENSHOTS
+from tests.processes import run_cli_child
 
 SCHEMA_FILE = REPO_ROOT / "ioc" / "ioc.schema.json"
 DEPLOY = REPO_ROOT / "deploy"
@@ -43,12 +44,9 @@ def _yaml(path: Path) -> Any:
 
 @pytest.mark.e2e
 def test_the_committed_schema_is_what_ioc_schema_prints() -> None:
-    printed = subprocess.run(
-        [sys.executable, "-m", "fastcs_ethercat", "ioc", "schema"],
-        capture_output=True,
-        text=True,
-        check=True,
-    ).stdout
+    done = run_cli_child("ioc", "schema")
+    assert done.returncode == 0, done.stderr
+    printed = done.stdout
 
     assert printed == config_schema_text() == SCHEMA_FILE.read_text(encoding="utf-8")
     jsonschema.Draft202012Validator.check_schema(json.loads(printed))

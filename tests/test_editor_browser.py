@@ -19,8 +19,6 @@ import contextlib
 import os
 import re
 import shutil
-import subprocess
-import sys
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -35,7 +33,8 @@ from fastcs_ethercat.sim.process import SimProcess
 from fastcs_ethercat.terminals.files import read_terminal_file
 
 from .conftest import NEEDS_ESI_SUBSET, SCREENSHOTS
-from .ioc_support import IOC_COMMAND, ioc_env, new_token, processes_with_token, stop_pid
+from .ioc_support import ioc_env, new_token, processes_with_token, stop_pid
+from .processes import CLI, run_cli_child
 from .test_terminals_support import ESI, FIXTURE, TERMINALS, run_cli
 
 pytestmark = pytest.mark.e2e
@@ -100,9 +99,8 @@ def running_editor(folder: Path, cache: Path, *extra: str) -> Iterator[str]:
     """`terminals edit FOLDER` on loopback and a free port: its URL."""
     env = dict(os.environ, XDG_CACHE_HOME=str(cache), PYTHONUNBUFFERED="1")
     env.pop("PYTEST_CURRENT_TEST", None)  # NiceGUI would take it for its own tests
-    command = [sys.executable, "-m", "fastcs_ethercat", "terminals", "edit",
-               str(folder), "--esi", str(ESI), "--esi", str(FIXTURE),
-               "--port", "0", *extra]  # fmt: skip
+    command = [*CLI, "terminals", "edit", str(folder), "--esi", str(ESI),
+               "--esi", str(FIXTURE), "--port", "0", *extra]  # fmt: skip
     child = ChildProcess(command, "terminals edit", env=env, merge_stderr=True)
     try:
         url = child.start(90)["url"]
@@ -356,10 +354,7 @@ def _served_pvs(work: Path, folder: Path) -> set[str]:
                 ),
                 encoding="utf-8",
             )
-            done = subprocess.run(
-                [*IOC_COMMAND, "--config", str(config), "--list-pvs"],
-                env=env, capture_output=True, text=True, timeout=120,
-            )  # fmt: skip
+            done = run_cli_child("ioc", "--config", config, "--list-pvs", env=env)
     finally:
         for pid in processes_with_token(token):
             stop_pid(pid)

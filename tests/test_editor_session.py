@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import shutil
-import subprocess
-import sys
 from functools import partial
 from pathlib import Path
 
@@ -15,6 +13,7 @@ from fastcs_ethercat.editor.session import EditorSession
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.terminals.files import read_terminal_file
 from fastcs_ethercat.terminals.selection import select_coe, select_group
+from tests.processes import run_python_child
 
 from .conftest import NEEDS_ESI_SUBSET
 from .test_terminals_support import ESI, TERMINALS, cache_home
@@ -101,7 +100,7 @@ def test_the_ioc_never_imports_the_editor() -> None:
         "'fastcs_ethercat.editor', 'selenium'))]\n"
         "assert not bad, bad\n"
     )
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    done = run_python_child(code)
     assert done.returncode == 0, done.stderr
 
 

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import shutil
 import subprocess
-import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -40,11 +39,11 @@ from tests.ioc_support import (
     start_ioc,
     wait_for,
 )
-from tests.processes import new_token
+from tests.processes import new_token, run_cli_child
 
 pytestmark = pytest.mark.e2e
 
-CLI = (sys.executable, "-m", "fastcs_ethercat")
+INIT_TIMEOUT_S = 600.0
 RACK_CHAIN = REPO_ROOT / "ioc" / "rack-chain.yaml"
 OLD_EL1014 = 0x00120000
 ADDED = "Term 102 (EL3102)"
@@ -78,20 +77,11 @@ class Done:
         return self.result.stdout
 
 
-def init(*args: str | Path, env: dict[str, str] | None = None) -> Any:
-    return subprocess.run(
-        [*CLI, "init", *map(str, args)],
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
-
-
 def run_init(rack: Rack, target: str, out: Path, *extra: str | Path) -> Done:
-    done = init("--target", target, "--ams-net-id", NET_ID, "--prefix", rack.prefix,
-                "--esi", ESI_SUBSET, "--out", out, *extra,
-                env=ioc_env(rack.token))  # fmt: skip
+    done = run_cli_child("init", "--target", target, "--ams-net-id", NET_ID,
+                         "--prefix", rack.prefix, "--esi", ESI_SUBSET, "--out", out,
+                         *extra, env=ioc_env(rack.token),
+                         timeout=INIT_TIMEOUT_S)  # fmt: skip
     return Done(out, target, done)
 
 
@@ -191,13 +181,8 @@ def test_dir_holds_a_commented_config_and_a_services_instance(
 def test_the_ioc_of_dir_lists_every_terminal_from_its_own_yaml(
     first: Done, rack: Rack
 ) -> None:
-    done = subprocess.run(
-        [*IOC_COMMAND, "--config", str(first.out / "ioc.yaml"), "--list-pvs"],
-        env=ioc_env(rack.token),
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
+    done = run_cli_child("ioc", "--config", first.out / "ioc.yaml", "--list-pvs",
+                         env=ioc_env(rack.token), timeout=300)  # fmt: skip
 
     assert done.returncode == 0, done.stderr[-2000:]
     for sign in ("generic", "has no YAML", "served from", "no terminal YAML"):
@@ -344,8 +329,9 @@ def test_an_esi_source_that_lacks_a_type_is_refused(
     shutil.copy(ESI_SUBSET / "Beckhoff EL1xxx.xml", esi)
     out = tmp_path / "rack"
 
-    done = init("--target", sim.pyads_ip, "--ams-net-id", NET_ID, "--prefix",
-                rack.prefix, "--esi", esi, "--out", out)  # fmt: skip
+    done = run_cli_child("init", "--target", sim.pyads_ip, "--ams-net-id", NET_ID,
+                         "--prefix", rack.prefix, "--esi", esi, "--out", out,
+                         timeout=INIT_TIMEOUT_S)  # fmt: skip
 
     assert done.returncode == 2
     [line] = [x for x in done.stderr.splitlines() if x.startswith("error")]
@@ -361,8 +347,9 @@ def test_a_dir_that_is_a_file_is_refused(rack: Rack, tmp_path: Path) -> None:
     out = tmp_path / "rack"
     out.write_text("not a folder\n")
 
-    done = init("--target", "127.0.0.1", "--prefix", rack.prefix, "--esi",
-                ESI_SUBSET, "--out", out)  # fmt: skip
+    done = run_cli_child("init", "--target", "127.0.0.1", "--prefix", rack.prefix,
+                         "--esi", ESI_SUBSET, "--out", out,
+                         timeout=INIT_TIMEOUT_S)  # fmt: skip
 
     assert done.returncode == 2
     assert done.stderr == (

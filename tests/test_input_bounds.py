@@ -25,6 +25,7 @@ from fastcs_ethercat.ioc.config import load_ioc_config
 from fastcs_ethercat.terminals.files import parse_terminal_text, read_terminal_file
 from fastcs_ethercat.terminals.generate import terminal_from_esi
 from tests.conftest import TERMINALS_DIR, loopback_env
+from tests.processes import CLI
 from tests.test_terminals_support import cache_home
 from tests.test_terminals_support import run_cli as run_cli_here
 
@@ -54,10 +55,10 @@ class Measured:
 e2e = pytest.mark.e2e
 
 
-def run_cli(*args: str) -> Measured:
+def run_cli_measured(*args: str) -> Measured:
     """`fastcs-ethercat ARGS` in a child of a child, so its peak RSS and CPU
     time are its own (`RUSAGE_CHILDREN` of the middle process)."""
-    command = [sys.executable, "-m", "fastcs_ethercat", *args]
+    command = [*CLI, *args]
     done = subprocess.run(
         [sys.executable, "-c", _MEASURE, *command],
         capture_output=True,
@@ -112,7 +113,7 @@ def test_a_200_mb_esi_file_is_refused_fast_in_bounded_memory(tmp_path: Path) -> 
     with path.open("r+b") as stream:  # sparse: 200 MB on paper, cheap to make
         stream.truncate(200 * 1024 * 1024)
 
-    measured = run_cli("terminals", "list", "--esi", str(path))
+    measured = run_cli_measured("terminals", "list", "--esi", str(path))
 
     assert_one_error_line(measured, "no usable terminal type")
     assert f"{path}: ESI file: larger than 16 MiB" in measured.stderr
@@ -131,7 +132,7 @@ def test_an_esi_file_of_real_devices_over_the_cap_is_never_parsed(
     one = esi_with(tmp_path).stat().st_size
     path = esi_with(tmp_path, copies=24 * MIB // one + 1)
 
-    measured = run_cli("terminals", "list", "--esi", str(path))
+    measured = run_cli_measured("terminals", "list", "--esi", str(path))
 
     assert_one_error_line(measured, "no usable terminal type")
     assert f"{path}: ESI file: larger than 16 MiB: refused" in measured.stderr
@@ -172,8 +173,8 @@ def test_absurd_bit_lengths_are_one_line(
     assert words in text and "\n" not in text and len(text) < 300
 
     out = tmp_path / "out"
-    listed = run_cli("terminals", "list", "--esi", str(path))
-    generated = run_cli(
+    listed = run_cli_measured("terminals", "list", "--esi", str(path))
+    generated = run_cli_measured(
         "terminals", "generate", "EL1084", "--esi", str(path), "--out", str(out)
     )
 
@@ -312,7 +313,7 @@ def test_nothing_usable_exits_2(tmp_path: Path) -> None:
     path = tmp_path / "broken.xml"
     path.write_text("<EtherCATInfo><Vendor><Id>2</Id></Vendor>")
 
-    measured = run_cli("terminals", "list", "--esi", str(path))
+    measured = run_cli_measured("terminals", "list", "--esi", str(path))
 
     assert_one_error_line(measured, "no usable terminal type")
     assert "0 terminal types" not in measured.stdout
@@ -346,7 +347,7 @@ def _config(tmp_path: Path, extra: str) -> Path:
 def test_an_endless_chain_is_refused_fast_in_bounded_memory(tmp_path: Path) -> None:
     config = _config(tmp_path, "chain: /dev/zero\n")
 
-    measured = run_cli("ioc", "--config", str(config), "--list-pvs")
+    measured = run_cli_measured("ioc", "--config", str(config), "--list-pvs")
 
     assert_one_error_line(measured, "/dev/zero: chain file: larger than 16 MiB")
     assert measured.cpu_s < BOUND_S
@@ -371,7 +372,7 @@ def test_a_yaml_alias_bomb_is_refused_fast_in_bounded_memory(
     bomb.write_text(alias_bomb())
     config = bomb if where == "config" else _config(tmp_path, f"chain: {bomb}\n")
 
-    measured = run_cli("ioc", "--config", str(config), "--list-pvs")
+    measured = run_cli_measured("ioc", "--config", str(config), "--list-pvs")
 
     assert_one_error_line(measured, f"{bomb}:", "aliases expand to more than")
     assert measured.cpu_s < BOUND_S

@@ -9,7 +9,6 @@ refused on exactly the two restricted records while reads keep working.
 from __future__ import annotations
 
 import re
-import subprocess
 import sys
 from collections.abc import Iterator
 from pathlib import Path
@@ -35,6 +34,7 @@ from tests.ioc_support import (
     start_ioc,
     wait_for,
 )
+from tests.processes import run_python_child
 
 EXAMPLE_ACF = REPO_ROOT / "ioc" / "access-example.acf"
 
@@ -197,19 +197,13 @@ def test_pva_puts_obey_the_acf_as_ca_puts_do(ioc: IocProcess) -> None:
 @pytest.mark.e2e
 def test_check_acf_leaves_this_process_alone(tmp_path: Path) -> None:
     """The parse runs in a child: this process's EPICS state is untouched."""
-    done = subprocess.run(
-        [
-            sys.executable,
-            "-c",
-            "from pathlib import Path; import ctypes, sys\n"
-            "from epicscorelibs.ioc import Com\n"
-            "from fastcs_ethercat.ioc.access import check_acf\n"
-            "check_acf(Path(sys.argv[1]))\n"
-            "print(bool(ctypes.c_int.in_dll(Com, 'asActive').value))\n",
-            str(EXAMPLE_ACF),
-        ],
-        capture_output=True,
-        text=True,
+    done = run_python_child(
+        "from pathlib import Path; import ctypes, sys\n"
+        "from epicscorelibs.ioc import Com\n"
+        "from fastcs_ethercat.ioc.access import check_acf\n"
+        "check_acf(Path(sys.argv[1]))\n"
+        "print(bool(ctypes.c_int.in_dll(Com, 'asActive').value))\n",
+        str(EXAMPLE_ACF),
         timeout=60,
     )
 

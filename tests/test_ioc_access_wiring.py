@@ -3,8 +3,6 @@ ACF given to `fastcs-ethercat ioc` is reported (before anything connects)."""
 
 from __future__ import annotations
 
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -14,6 +12,7 @@ from fastcs_ethercat.ioc.attributes import attribute_for_coe, attribute_for_poin
 from fastcs_ethercat.ioc.config import load_ioc_config
 from fastcs_ethercat.ioc.plan import CoePoint, Point, PointKind
 from tests.conftest import REPO_ROOT
+from tests.processes import run_cli_child
 
 OUTPUT = Point(
     key="m/s/out",
@@ -69,22 +68,7 @@ def test_bad_acf_is_one_line_and_exit_2(tmp_path: Path) -> None:
     config.write_text("prefix: T\ntarget: 127.0.0.1:9\nams_net_id: 127.0.0.1.1.1\n")
     acf = tmp_path / "site.acf"
     acf.write_text("ASG(DEFAULT) {\n    RULE(1, WRIT)\n}\n")
-    done = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "fastcs_ethercat",
-            "ioc",
-            "--config",
-            str(config),
-            "--acf",
-            str(acf),
-        ],
-        capture_output=True,
-        text=True,
-        cwd=REPO_ROOT,
-        timeout=120,
-    )
+    done = run_cli_child("ioc", "--config", config, "--acf", acf, cwd=REPO_ROOT)
     assert done.returncode == 2
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and "site.acf" in lines[0], done.stderr

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import json
 import re
-import subprocess
 import sys
 import time
 from collections.abc import Iterator, Sequence
@@ -32,6 +31,7 @@ from fastcs_ethercat.ioc.fastcs_adapter import (
     shape_problems,
     version_problems,
 )
+from fastcs_ethercat.process import ChildProcess
 from tests.conftest import TEST_DATA
 from tests.ioc_support import (
     START_TIMEOUT,
@@ -41,9 +41,9 @@ from tests.ioc_support import (
     ioc_env,
     new_token,
     start_ioc,
-    stop_pid,
     wait_for,
 )
+from tests.processes import run_python_child, wait_for_line
 
 NAMES = ("Temperature", "Mode", "Samples", "Output", "CoeGain", "Setting", "Refusing")
 CA_NAMES = (
@@ -111,13 +111,8 @@ def aioca_alarms(ioc: IocProcess, names: Sequence[str]) -> dict[str, list[int]]:
         " for n, v in zip(names, values)}))\n"
         "asyncio.run(main(sys.argv[1:]))\n"
     )
-    done = subprocess.run(
-        [sys.executable, "-c", script, *(ioc.pv(name) for name in names)],
-        env=ioc.env,
-        capture_output=True,
-        text=True,
-        timeout=60,
-    )
+    pvs = [ioc.pv(name) for name in names]
+    done = run_python_child(script, *pvs, env=ioc.env, timeout=60)
     by_pv = json.loads(done.stdout.strip().splitlines()[-1])
     return {name: by_pv[ioc.pv(name)] for name in names}
 
@@ -232,23 +227,19 @@ asyncio.run(main(sys.argv[1], float(sys.argv[2])))
 def test_a_monitor_sees_an_output_record_go_into_alarm_and_out(
     ioc: IocProcess,
 ) -> None:
-    monitor = subprocess.Popen(
+    monitor = ChildProcess(
         [sys.executable, "-c", MONITOR_SCRIPT, ioc.pv("Output"), "6"],
+        "monitor",
         env=ioc.env,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.DEVNULL,
-        text=True,
     )
-    try:
-        assert monitor.stdout is not None
-        first = json.loads(monitor.stdout.readline())
+    with monitor:
+        monitor.launch()
+        wait_for_line(monitor, r"^\[", 30)  # connected: the first update
         command(ioc, "alarm Output MAJOR WRITE")
         time.sleep(0.5)
         command(ioc, "clear Output")
-        output, _ = monitor.communicate(timeout=30)
-    finally:
-        stop_pid(monitor.pid)
-    updates = [first] + [json.loads(line) for line in output.splitlines()]
+        monitor.wait(30)
+    updates = [json.loads(line) for line in monitor.lines]
 
     assert updates == [[0, 0, 5.0], [2, 2, 5.0], [0, 0, 5.0]]
 

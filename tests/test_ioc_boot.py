@@ -116,10 +116,10 @@ def test_an_ioc_started_without_its_plc_serves_the_configured_chain(
         invalid = wait_for(lambda: "COMM INVALID" in alarm_of(ioc, ramp), 10)
         connected = caget(ioc, ioc.pv("Connected")).get(ioc.pv("Connected"))
         time.sleep(2)  # retrying: still alive
-        alive = ioc.process.poll() is None
+        alive = ioc.child.returncode is None
         with plc_appears(ioc, port, env, ramp) as seconds:
             gone = wait_for(lambda: "STATE INVALID" in alarm_of(ioc, standard), 10)
-        still_alive = ioc.process.poll() is None
+        still_alive = ioc.child.returncode is None
     finally:
         ioc.stop()
 

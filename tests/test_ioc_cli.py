@@ -19,11 +19,16 @@ import pytest
 from fastcs_ethercat.terminals.loader import load_terminals
 from tests.conftest import REPO_ROOT, TERMINALS_DIR
 from tests.ioc_support import free_port, ioc_env, start_ioc
-from tests.processes import SESSION_VARIABLE, TOKEN_VARIABLE, new_token
+from tests.processes import (
+    CLI,
+    SESSION_VARIABLE,
+    TOKEN_VARIABLE,
+    new_token,
+    run_cli_child,
+)
 
 pytestmark = pytest.mark.e2e
 
-IOC = (sys.executable, "-m", "fastcs_ethercat")
 README_COE_EXAMPLE = ":ETH1:RIO21:MOD22:C8000:EnableFilter"
 """The README's CoE example (below the prefix): the demo serves it."""
 TERMINAL_PV = re.compile(r"^(?P<terminal>[^:]+:ETH\d+:RIO\d+:MOD\d+):(?P<rest>.+)$")
@@ -41,8 +46,9 @@ def test_the_readme_names_the_coe_example() -> None:
 def test_the_demo_serves_one_coe_object_of_every_analog_input_type() -> None:
     """What the demo tutorial promises: each analog input type (EL3.., ELM3..,
     EP3..) with a CoE dictionary serves one CoE object, named in the text."""
-    done = _run("ioc", "--config", "ioc/demo.yaml", "--chain",
-                "ioc/demo-chain.yaml", "--list-pvs")  # fmt: skip
+    done = run_cli_child("ioc", "--config", "ioc/demo.yaml", "--chain",
+                         "ioc/demo-chain.yaml", "--list-pvs", cwd=REPO_ROOT,
+                         env=ioc_env(new_token()))  # fmt: skip
     assert done.returncode == 0, done.stderr[-2000:]
     types: dict[str, str] = {}  # `DEMO:ETH1:RIO1:MOD5` -> `EL3104`
     coe: dict[str, set[str]] = {}  # `DEMO:ETH1:RIO1:MOD5` -> {`C8000:EnableFilter`}
@@ -77,21 +83,9 @@ def test_the_demo_serves_one_coe_object_of_every_analog_input_type() -> None:
         assert type_name in promise and f"`...:{pv}`" in promise, (type_name, pv)
 
 
-def _run(
-    *args: str, cwd: Path = REPO_ROOT, **env: str
-) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [*IOC, *args],
-        cwd=cwd,
-        env={**ioc_env(new_token()), **env},
-        capture_output=True,
-        text=True,
-        timeout=60,
-    )
-
-
 def test_a_missing_config_is_one_error_line(tmp_path: Path) -> None:
-    done = _run("ioc", "--config", str(tmp_path / "none.yaml"), "--list-pvs")
+    done = run_cli_child("ioc", "--config", tmp_path / "none.yaml", "--list-pvs",
+                         cwd=REPO_ROOT, env=ioc_env(new_token()))  # fmt: skip
 
     assert done.returncode == 2
     assert done.stderr.strip().splitlines() == [
@@ -109,7 +103,8 @@ def test_an_unsupported_fastcs_version_stops_the_ioc_in_one_line(
     (fake / "METADATA").write_text(
         "Metadata-Version: 2.1\nName: fastcs\nVersion: 0.99.0\n"
     )
-    done = _run("ioc", "--config", "ioc/demo.yaml", PYTHONPATH=str(tmp_path))
+    env = {**ioc_env(new_token()), "PYTHONPATH": str(tmp_path)}
+    done = run_cli_child("ioc", "--config", "ioc/demo.yaml", cwd=REPO_ROOT, env=env)
 
     assert done.returncode == 2
     assert done.stderr.strip().splitlines() == [
@@ -164,15 +159,18 @@ def test_the_ioc_waiting_for_its_plc_collects_garbage(
 
 
 def test_a_bad_flag_value_names_the_flag() -> None:
-    done = _run("ioc", "--config", "ioc/demo.yaml", "--poll-rate", "0", "--list-pvs")
+    done = run_cli_child("ioc", "--config", "ioc/demo.yaml", "--poll-rate", "0",
+                         "--list-pvs", cwd=REPO_ROOT,
+                         env=ioc_env(new_token()))  # fmt: skip
 
     assert done.returncode == 2
     assert "poll_rate_hz (command line)" in done.stderr.splitlines()[-1]
 
 
 def test_a_target_that_does_not_answer_is_a_user_error() -> None:
-    done = _run("ioc", "--config", "ioc/demo.yaml", "--target", "127.0.0.1:1",
-                "--list-pvs")  # fmt: skip
+    done = run_cli_child("ioc", "--config", "ioc/demo.yaml", "--target",
+                         "127.0.0.1:1", "--list-pvs", cwd=REPO_ROOT,
+                         env=ioc_env(new_token()))  # fmt: skip
 
     assert done.returncode == 2
     assert (
@@ -187,7 +185,7 @@ def test_demo_prints_lines_that_read_numbers_and_text_from_a_bare_shell(
 ) -> None:
     token = new_token()
     prefix = f"DM{token[:6].upper()}"
-    demo = start_ioc([*IOC, "demo", "--prefix", prefix], prefix, ioc_env(token), token)
+    demo = start_ioc([*CLI, "demo", "--prefix", prefix], prefix, ioc_env(token), token)
     try:
         listed = demo.wait_for_line(r"^demo: \d+ PVs listed in ", 90)
         lines = [demo.wait_for_line(r"^demo: (try|text) ", 30) for _ in range(3)]

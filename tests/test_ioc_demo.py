@@ -15,8 +15,6 @@ from __future__ import annotations
 import asyncio
 import getpass
 import re
-import subprocess
-import sys
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -41,6 +39,7 @@ from tests.ioc_support import (
     aioca_get,
     caget,
     ioc_env,
+    list_pvs_text,
     new_token,
     start_ioc,
     stop_pid,
@@ -48,6 +47,7 @@ from tests.ioc_support import (
     wait_for,
     write_ioc_config,
 )
+from tests.processes import run_python_child
 
 pytestmark = pytest.mark.e2e
 
@@ -92,18 +92,6 @@ class Demo:
         return names[0]
 
 
-def _list_pvs(config: Path, env: dict[str, str]) -> list[str]:
-    done = subprocess.run(
-        [*IOC_COMMAND, "--config", str(config), "--list-pvs"],
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
-    assert done.returncode == 0, done.stderr[-3000:]
-    return done.stdout.splitlines()
-
-
 @pytest.fixture(scope="module")
 def demo(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Demo]:
     token = new_token()
@@ -127,9 +115,9 @@ def demo(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Demo]:
         )
         figures: dict[str, float] = {}
         started = time.monotonic()
-        listings = [_list_pvs(config, env)]
+        listings = [list_pvs_text(config, env).splitlines()]
         figures["list_pvs_s"] = time.monotonic() - started
-        listings.append(_list_pvs(config, env))
+        listings.append(list_pvs_text(config, env).splitlines())
         started = time.monotonic()
         ioc = start_ioc([*IOC_COMMAND, "--config", str(config)], prefix, env, token)
         try:
@@ -145,8 +133,8 @@ def demo(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Demo]:
             yield Demo(sim, ioc, listings, pvs, screens, figures)
         finally:
             ioc.stop()
-            if ioc.process.poll() is None:
-                stop_pid(ioc.process.pid)
+            if ioc.child.returncode is None:
+                stop_pid(ioc.child.pid)
 
 
 @pytest.mark.perf
@@ -381,12 +369,8 @@ asyncio.run(main(float(sys.argv[1]), sys.argv[2:]))
 
 def _ca_stamps(demo: Demo, names: list[str], seconds: float) -> list[tuple[str, int]]:
     """(PV, timestamp in ns) of every CA monitor event over `seconds`."""
-    done = subprocess.run(
-        [sys.executable, "-c", _MONITOR_STAMPS, str(seconds), *names],
-        env=demo.ioc.env,
-        capture_output=True,
-        text=True,
-        timeout=60,
+    done = run_python_child(
+        _MONITOR_STAMPS, str(seconds), *names, env=demo.ioc.env, timeout=60
     )
     events = []
     for line in done.stdout.splitlines():
@@ -543,8 +527,8 @@ def test_error_bit_turns_its_status_pv_major_with_the_value(demo: Demo) -> None:
         demo.sim.set_symbol(overrange, 0)
         cleared = _next_event(monitor, "False", 10)
     finally:
-        stop_pid(monitor.process.pid)
-        monitor.process.wait(5)
+        stop_pid(monitor.child.pid)
+        monitor.child.wait(5)
     after = caget(demo.ioc, "-a", error_pv, overrange_pv)
     stamp = time.mktime(time.strptime(raised["stamp"][:19], "%Y-%m-%d %H:%M:%S"))
     stamp += float("0" + raised["stamp"][19:])
@@ -623,6 +607,6 @@ def test_deviocstats_names_and_the_heartbeat(demo: Demo) -> None:
     assert 0 <= float(later[p("IOC_CPU_LOAD")]) <= 100
     assert 20e6 < float(later[p("MEM_USED")]) < 4096e6  # bytes, as devIocStats
     assert int(later[p("START_CNT")]) == int(start_count) == 1
-    assert int(pid) == demo.ioc.process.pid and int(count) >= 1
+    assert int(pid) == demo.ioc.child.pid and int(count) >= 1
     assert abs(time.time() - float(stamp)) < 10
     assert list((demo.screens.parent / "runtime" / "chains").glob("*.yaml"))

@@ -58,11 +58,13 @@ COE_PATH = (
     "^Coe ai_settings_8000_user_scale_offset"
 )
 LOSS_LIMIT_S = 8.0
-"""Loss to INVALID with COMM, a generous bound of the behaviour on a busy
-host: the target (1 s) is `fastcs-ethercat bench --only faults`'s figure."""
+"""A fault to its PVs INVALID (a lost target, a slave out of OP, a lost link,
+PDOs gone in an online change), a generous bound of the behaviour on a busy
+host: the targets (1 s for a lost target, 2.5 s for a slave's state or link,
+2 s for PDOs gone) are `fastcs-ethercat bench --only faults`'s figures."""
 RECOVERY_LIMIT_S = 15.0
-"""Target back to PVs valid and updating again, a generous bound: the target
-(5 s) is the benchmark's."""
+"""The fault gone to PVs valid and updating again, a generous bound: the
+targets (5 s; 3 s for a slave back in OP) are the benchmark's."""
 
 
 @dataclass
@@ -229,7 +231,7 @@ def clean(request: pytest.FixtureRequest) -> Iterator[None]:
 
 def _outage(rig: Rig, name: str, kind: str, hold: float, **params: Any) -> None:
     """Inject `kind`, expect every PV INVALID, clear after `hold`, expect all back."""
-    pid = rig.ioc.process.pid
+    pid = rig.ioc.child.pid
     reconnects = int(rig.root("Reconnects"))
     start = time.monotonic()
     rig.sim.add_fault(kind, **params)
@@ -249,7 +251,7 @@ def _outage(rig: Rig, name: str, kind: str, hold: float, **params: Any) -> None:
     assert max(loss, steady_loss) < LOSS_LIMIT_S
     assert reconnected
     assert back < RECOVERY_LIMIT_S
-    assert rig.ioc.process.poll() is None and rig.ioc.process.pid == pid
+    assert rig.ioc.child.returncode is None and rig.ioc.child.pid == pid
 
 
 @pytest.mark.e2e
@@ -372,7 +374,7 @@ def test_coe_values_go_invalid_on_loss_and_are_read_again(rig: Rig) -> None:
     coe, readback = rig.pv(COE), rig.pv(COE + "_RBV")
     rig.ioc.tool("caput", coe, "77")
     written = wait_for(lambda: caget(rig.ioc, readback).get(readback) == "77", 10)
-    pid = rig.ioc.process.pid
+    pid = rig.ioc.child.pid
 
     old = rig.sim
     stopped = time.monotonic()
@@ -393,14 +395,14 @@ def test_coe_values_go_invalid_on_loss_and_are_read_again(rig: Rig) -> None:
     assert "INVALID" in alarm and "COMM" in alarm, alarm
     assert value == 0  # the restarted slave's default, read again
     assert back < RECOVERY_LIMIT_S
-    assert rig.ioc.process.pid == pid and rig.ioc.process.poll() is None
+    assert rig.ioc.child.pid == pid and rig.ioc.child.returncode is None
 
 
 @pytest.mark.e2e
 def test_slave_in_preop_alarms_only_its_points(rig: Rig) -> None:
     start = time.monotonic()
     rig.sim.add_fault("slave_state", state="PREOP", name="Term 5 (EL3104)")
-    loss = rig.wait_invalid(SINE, start, timeout=5)
+    loss = rig.wait_invalid(SINE, start)
     rig.sim.set_symbol(STEADY_SYMBOL, 4242)
     steady = rig.pv(STEADY)
     follows = wait_for(lambda: caget(rig.ioc, steady).get(steady) == "4242", 10)
@@ -412,17 +414,17 @@ def test_slave_in_preop_alarms_only_its_points(rig: Rig) -> None:
     rig.figures["preop_alarm"] = loss
     rig.figures["preop_recovery"] = back
 
-    assert loss < 2.5  # master diagnostics are read once a second
+    assert loss < LOSS_LIMIT_S
     assert follows and steady_severity == 0
     assert state[rig.pv("ETH1:RIO1:MOD5:AlState")] == "PREOP"
-    assert back < 3.0
+    assert back < RECOVERY_LIMIT_S
 
 
 @pytest.mark.e2e
 def test_lost_link_alarms_only_that_slave(rig: Rig) -> None:
     start = time.monotonic()
     rig.sim.add_fault("link_lost", name="Term 22 (EL3104)")
-    loss = rig.wait_invalid(STEADY, start, timeout=5)
+    loss = rig.wait_invalid(STEADY, start)
     lost = time.monotonic()
     time.sleep(1.0)
     sine_moving = rig.watch.count_since(rig.pv(SINE), lost)
@@ -430,7 +432,7 @@ def test_lost_link_alarms_only_that_slave(rig: Rig) -> None:
     steady_severity = rig.watch.severity(rig.pv(STEADY))
     rig.figures["link_lost_alarm"] = loss
 
-    assert loss < 2.5
+    assert loss < LOSS_LIMIT_S
     assert sine_moving > 0  # the other slave's values keep coming, valid
     assert sine_severity == 0
     assert steady_severity == INVALID  # and the lost one stays in alarm
@@ -461,7 +463,7 @@ def test_lost_link_is_judged_per_port(rig: Rig) -> None:
 
 @pytest.mark.e2e
 def test_online_change_resolves_again_without_restart(rig: Rig) -> None:
-    pid = rig.ioc.process.pid
+    pid = rig.ioc.child.pid
     version = int(rig.root("SymbolVersion"))
     start = time.monotonic()
     rig.sim.add_fault("online_change")
@@ -473,7 +475,7 @@ def test_online_change_resolves_again_without_restart(rig: Rig) -> None:
     rig.figures["online_change_resolved"] = resolved
 
     assert bumped and follows
-    assert rig.ioc.process.pid == pid and rig.ioc.process.poll() is None
+    assert rig.ioc.child.pid == pid and rig.ioc.child.returncode is None
 
 
 @pytest.mark.e2e
@@ -524,7 +526,7 @@ def test_online_change_of_pdo_groups_alarms_only_what_went(rig: Rig) -> None:
     rig.figures["pdo_change_alarm"] = gone
     rig.figures["pdo_change_back"] = back
 
-    assert gone < 2.0
+    assert gone < LOSS_LIMIT_S
     assert "served points gone" in changes
     assert follows and steady_severity == 0
     assert back < RECOVERY_LIMIT_S
@@ -670,7 +672,7 @@ def test_target_restarted_with_another_chain_keeps_unchanged_terminals(
         encoding="utf-8",
     )
     term20 = "ETH1:RIO18:MOD20:AlState"
-    pid = rig.ioc.process.pid
+    pid = rig.ioc.child.pid
 
     stopped = _restart_sim(rig, changed)
     try:
@@ -695,4 +697,4 @@ def test_target_restarted_with_another_chain_keeps_unchanged_terminals(
     assert rig.pv(term20) in caget(rig.ioc, rig.pv(term20))
     assert follows
     assert cleared
-    assert rig.ioc.process.pid == pid and rig.ioc.process.poll() is None
+    assert rig.ioc.child.pid == pid and rig.ioc.child.returncode is None

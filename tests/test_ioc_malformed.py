@@ -65,7 +65,7 @@ def enough_sent_or_dead(proxy: HostileProxy, ioc: IocProcess) -> bool:
     """Wait until MALFORMED_FRAMES went out (or the IOC died): whether they did."""
     return wait_for(
         lambda: (
-            proxy.malformed_sent >= MALFORMED_FRAMES or ioc.process.poll() is not None
+            proxy.malformed_sent >= MALFORMED_FRAMES or ioc.child.returncode is not None
         ),
         180,
     )
@@ -88,7 +88,7 @@ def test_the_ioc_survives_a_hostile_target(tmp_path: Path) -> None:
             ioc = start_ioc([*IOC_COMMAND, "--config", str(config)], prefix, env, token)
             try:
                 ioc.wait_for_line("ioc ready", START_TIMEOUT)
-                maps = Path(f"/proc/{ioc.process.pid}/maps").read_text()
+                maps = Path(f"/proc/{ioc.child.pid}/maps").read_text()
                 assert wait_for(lambda: root(ioc, "Connected") == "True", 30)
                 assert sine_moves(ioc)
                 drain(ioc)
@@ -97,7 +97,7 @@ def test_the_ioc_survives_a_hostile_target(tmp_path: Path) -> None:
                 proxy.bad = True
                 lost = wait_for(lambda: root(ioc, "Connected") == "False", 20)
                 sent = enough_sent_or_dead(proxy, ioc)
-                alive_while_bad = ioc.process.poll() is None
+                alive_while_bad = ioc.child.returncode is None
                 proxy.bad = False
                 bad_seconds = time.monotonic() - started
                 bad_lines = drain(ioc)
@@ -110,7 +110,7 @@ def test_the_ioc_survives_a_hostile_target(tmp_path: Path) -> None:
                     60,
                 )
                 moving = back and sine_moves(ioc)
-                alive = ioc.process.poll() is None
+                alive = ioc.child.returncode is None
             finally:
                 ioc.stop()
 
@@ -150,13 +150,13 @@ def test_an_ioc_started_against_a_hostile_target_serves_once_it_turns_good(
             ioc = start_ioc([*IOC_COMMAND, "--config", str(config)], prefix, env, token)
             try:
                 sent = enough_sent_or_dead(proxy, ioc)
-                alive_while_bad = ioc.process.poll() is None
+                alive_while_bad = ioc.child.returncode is None
                 bad_seconds = time.monotonic() - started
                 bad_lines = drain(ioc)
                 proxy.bad = False
                 ioc.wait_for_line("ioc ready", START_TIMEOUT)
                 moving = wait_for(lambda: moves(ioc, sine), 30)
-                alive = ioc.process.poll() is None
+                alive = ioc.child.returncode is None
             finally:
                 ioc.stop()
             rest = drain(ioc)

@@ -8,8 +8,6 @@ and the rack chain (e2e); the position test builds the tree in-process.
 from __future__ import annotations
 
 import re
-import subprocess
-import sys
 from collections import defaultdict
 from pathlib import Path
 
@@ -20,7 +18,7 @@ from fastcs_ethercat.ioc.naming import MAX_PV_LENGTH, RBV_SUFFIX
 from fastcs_ethercat.sim.process import SimProcess
 from tests.conftest import REPO_ROOT, TERMINALS_DIR
 from tests.ioc_support import ioc_env
-from tests.processes import new_token
+from tests.processes import new_token, run_cli_child
 from tests.tree_support import BEAMLINE_PREFIX, built_tree, chain_text
 
 SHORTENED = re.compile(r"PV name shortened: .*: (\S+) -> (\S+) \((.*)\)$")
@@ -58,13 +56,11 @@ def test_el3104s_anywhere_on_the_bus_have_the_same_suffixes(tmp_path: Path) -> N
 @pytest.mark.parametrize("chain", ["demo-chain.yaml", "rack-chain.yaml"])
 def test_list_pvs_under_a_beamline_prefix_needs_no_hash(chain: str) -> None:
     with SimProcess(REPO_ROOT / "ioc" / chain, terminals=TERMINALS_DIR) as sim:
-        done = subprocess.run(
-            [sys.executable, "-m", "fastcs_ethercat", "--log-level", "debug",
-             "ioc", "--config", "ioc/demo.yaml", "--prefix", BEAMLINE_PREFIX,
-             "--target", f"{sim.host}:{sim.tcp_port}", "--ams-net-id", sim.net_id,
-             "--list-pvs"],
-            cwd=REPO_ROOT, env=ioc_env(new_token()), capture_output=True, text=True,
-            timeout=120,
+        done = run_cli_child(
+            "--log-level", "debug", "ioc", "--config", "ioc/demo.yaml",
+            "--prefix", BEAMLINE_PREFIX, "--target", f"{sim.host}:{sim.tcp_port}",
+            "--ams-net-id", sim.net_id, "--list-pvs",
+            cwd=REPO_ROOT, env=ioc_env(new_token()),
         )  # fmt: skip
 
     assert done.returncode == 0, done.stderr[-2000:]
@@ -126,10 +122,9 @@ def test_an_alias_equal_to_a_generated_name_stops_the_ioc_in_one_line(
     with SimProcess(
         REPO_ROOT / "ioc" / "demo-chain.yaml", terminals=TERMINALS_DIR
     ) as sim:
-        done = subprocess.run(
-            [sys.executable, "-m", "fastcs_ethercat", "ioc", "--config", str(config),
-             "--target", f"{sim.host}:{sim.tcp_port}", "--ams-net-id", sim.net_id],
-            env=ioc_env(new_token()), capture_output=True, text=True, timeout=120,
+        done = run_cli_child(
+            "ioc", "--config", config, "--target", f"{sim.host}:{sim.tcp_port}",
+            "--ams-net-id", sim.net_id, env=ioc_env(new_token()),
         )  # fmt: skip
 
     last = done.stderr.strip().splitlines()[-1]

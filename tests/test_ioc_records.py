@@ -9,7 +9,6 @@ driven by setting its raw count in the simulator (32767 counts = 10 V).
 from __future__ import annotations
 
 import re
-import subprocess
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
@@ -32,6 +31,7 @@ from tests.ioc_support import (
     wait_for,
     write_ioc_config,
 )
+from tests.processes import run_cli_child
 
 pytestmark = pytest.mark.e2e
 
@@ -98,8 +98,8 @@ def rack(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Rack]:
             yield rack
         finally:
             ioc.stop()
-            if ioc.process.poll() is None:
-                stop_pid(ioc.process.pid)
+            if ioc.child.returncode is None:
+                stop_pid(ioc.child.pid)
 
 
 def _reset(rack: Rack) -> None:
@@ -177,8 +177,8 @@ def _events(rack: Rack, mask: str, during: Callable[[], None]) -> list[str]:
         during()
         time.sleep(0.5)
     finally:
-        stop_pid(monitor.process.pid)
-        monitor.process.wait(5)
+        stop_pid(monitor.child.pid)
+        monitor.child.wait(5)
     monitor.unread()  # into its output
     return [line for line in monitor.output if rack.value in line]
 
@@ -281,13 +281,7 @@ def test_a_site_database_that_does_not_load_stops_the_ioc(
         rack.sim.net_id,
         databases=[{"file": "broken.db"}],
     )
-    done = subprocess.run(
-        [*IOC_COMMAND, "--config", str(config)],
-        env=rack.ioc.env,
-        capture_output=True,
-        text=True,
-        timeout=60,
-    )
+    done = run_cli_child("ioc", "--config", config, env=rack.ioc.env, timeout=60)
 
     assert done.returncode == 2, done.stderr[-2000:]
     assert "Traceback" not in done.stderr

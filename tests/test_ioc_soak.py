@@ -71,7 +71,7 @@ def test_soak_faults_monitor_and_writes(tmp_path: Path) -> None:
             rig = Rig(sim, ioc, watch, {})
             assert rig.all_back(30)
             out = ioc.pv("ETH1:RIO21:MOD24:CH3:AnalogOutput")
-            before = _resources(ioc.process.pid)
+            before = _resources(ioc.child.pid)
             accepted: list[int] = []
             held: list[tuple[str, bool, Any]] = []
             """What the target held after each outage, before the next write."""
@@ -119,8 +119,8 @@ def test_soak_faults_monitor_and_writes(tmp_path: Path) -> None:
                 ads_writes.append(_writes(sim) - counted)
                 accepted.append(value)
                 outages += 1
-                rss.append(_resources(ioc.process.pid)[2])
-            after = _resources(ioc.process.pid)
+                rss.append(_resources(ioc.child.pid)[2])
+            after = _resources(ioc.child.pid)
             moving = watch.count_since(ioc.pv(SINE), time.monotonic() - 2)
             subscription.close()
     print(

@@ -5,13 +5,12 @@ from __future__ import annotations
 
 import logging
 import re
-import subprocess
-import sys
 from collections.abc import Iterator
 
 import pytest
 
 from fastcs_ethercat.logs import LogLevel, log_at_most, setup_logging
+from tests.processes import run_python_child
 
 LINE = re.compile(
     r"^\d{4}-\d\d-\d\d \d\d:\d\d:\d\d\.\d{3} (DEBUG|INFO|WARNING|ERROR|CRITICAL) +"
@@ -35,9 +34,7 @@ logger.debug("not shown at info")
 
 
 def _run(level: str) -> list[str]:
-    done = subprocess.run(
-        [sys.executable, "-c", _FAILED_PUT, level], capture_output=True, text=True
-    )
+    done = run_python_child(_FAILED_PUT, level)
     assert done.returncode == 0, done.stderr
     assert done.stdout == ""
     return done.stderr.splitlines()

@@ -156,15 +156,15 @@ def test_the_ioc_warns_at_start_of_an_acf_leaving_outputs_to_default(
     tmp_path: Path,
 ) -> None:
     from tests.conftest import REPO_ROOT
-    from tests.test_input_bounds import run_cli
+    from tests.test_input_bounds import run_cli_measured
 
     acf = tmp_path / "site.acf"
     acf.write_text("ASG(DEFAULT) {\n    RULE(1, READ)\n    RULE(1, WRITE)\n}\n")
     args = ["ioc", "--config", str(REPO_ROOT / "ioc" / "demo.yaml"), "--list-pvs"]
     chain = ["--chain", str(REPO_ROOT / "ioc" / "demo-chain.yaml")]
 
-    measured = run_cli(*args, *chain, "--acf", str(acf))
-    quiet = run_cli(
+    measured = run_cli_measured(*args, *chain, "--acf", str(acf))
+    quiet = run_cli_measured(
         *args, *chain, "--acf", str(REPO_ROOT / "ioc" / "access-example.acf")
     )
 

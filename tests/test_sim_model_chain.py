@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -12,6 +10,7 @@ from fastcs_ethercat.chain.file import load_chain, parse_chain
 from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.twincat.target import SimTarget
 from tests.conftest import DLS_TYPES
+from tests.processes import run_cli_child
 from tests.test_sim_model_support import (
     DEMO_CHAIN,
     REPO_ROOT,
@@ -154,25 +153,8 @@ def test_example_chains_in_ioc_load() -> None:
 def test_the_cli_reports_a_bad_chain_in_one_line(tmp_path: Path) -> None:
     bad = tmp_path / "bad-chain.yaml"
     bad.write_text("masters:\n- slaves:\n  - {type: EL9999}\n", encoding="utf-8")
-    done = subprocess.run(
-        [
-            sys.executable,
-            "-c",
-            "from fastcs_ethercat.cli import app; app()",
-            "sim",
-            "--chain",
-            str(bad),
-            "--terminals",
-            str(TERMINALS_DIR),
-            "--port",
-            "0",
-            "--udp-port",
-            "0",
-        ],
-        capture_output=True,
-        text=True,
-        timeout=60,
-    )
+    done = run_cli_child("sim", "--chain", bad, "--terminals", TERMINALS_DIR,
+                         "--port", "0", "--udp-port", "0", timeout=60)  # fmt: skip
     assert done.returncode == 2
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1

@@ -58,6 +58,19 @@ async def read_state(simulator: Simulator, client: RawClient) -> ReadStateRespon
     return ReadStateResponse.decode(answer.payload)
 
 
+async def connected_within(port: int, seconds: float) -> RawClient:
+    """A client of `port` once the server takes connections again (refused
+    ones retried until `seconds` pass)."""
+    deadline = time.monotonic() + seconds
+    while True:
+        try:
+            return await RawClient.connect(port)
+        except ConnectionRefusedError:
+            if time.monotonic() > deadline:
+                raise
+            await asyncio.sleep(0.02)
+
+
 async def test_drop_closes_every_connection_and_new_ones_work(
     simulator: Simulator,
 ) -> None:
@@ -100,11 +113,7 @@ async def test_clearing_faults_ends_a_refusal_early(simulator: Simulator) -> Non
     with pytest.raises(ConnectionRefusedError):
         await RawClient.connect(simulator.server.port)
     simulator.control.clear_faults()
-    for _ in range(50):
-        if simulator.server.listening:
-            break
-        await asyncio.sleep(0.02)
-    client = await RawClient.connect(simulator.server.port)
+    client = await connected_within(simulator.server.port, 1.0)
     await read_state(simulator, client)
     await client.close()
 

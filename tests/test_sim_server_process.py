@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import os
 import signal
-import subprocess
 import sys
 import time
 from collections.abc import Iterator
@@ -15,11 +14,11 @@ import pytest
 from fastcs_ethercat.process import ChildProcess, parse_ready_line
 from fastcs_ethercat.sim.process import SimProcess, SimProcessError
 from tests.conftest import REPO_ROOT
+from tests.processes import CLI, run_cli_child, running, wait_for_line
 
 pytestmark = pytest.mark.e2e
 
 DEMO_CHAIN = REPO_ROOT / "ioc" / "demo-chain.yaml"
-CLI = [sys.executable, "-c", "from fastcs_ethercat.cli import app; app()", "sim"]
 
 
 @pytest.fixture(scope="module")
@@ -69,7 +68,7 @@ def test_sigint_and_sigterm_stop_cleanly() -> None:
 
 
 def test_cli_prints_the_ready_line_with_default_host() -> None:
-    args = [*CLI, "--chain", str(DEMO_CHAIN), "--port", "0", "--udp-port", "0"]
+    args = [*CLI, "sim", "--chain", str(DEMO_CHAIN), "--port", "0", "--udp-port", "0"]
     child = ChildProcess(args, "sim")
     try:
         fields = child.start(60)
@@ -93,7 +92,7 @@ def test_cli_prints_the_ready_line_with_default_host() -> None:
 def test_bad_arguments_give_one_line_and_exit_2(
     args: list[str], message: str, tmp_path: Path
 ) -> None:
-    done = subprocess.run([*CLI, *args], capture_output=True, text=True, timeout=60)
+    done = run_cli_child("sim", *args, timeout=60)
     assert done.returncode == 2
     assert "Traceback" not in done.stderr
     (line,) = done.stderr.strip().splitlines()
@@ -103,10 +102,9 @@ def test_bad_arguments_give_one_line_and_exit_2(
 
 def test_busy_port_is_a_user_error() -> None:
     with SimProcess(DEMO_CHAIN) as first:
-        args = [*CLI, "--chain", str(DEMO_CHAIN), "--port", str(first.tcp_port)]
-        done = subprocess.run(
-            [*args, "--udp-port", "0"], capture_output=True, text=True, timeout=60
-        )
+        done = run_cli_child("sim", "--chain", DEMO_CHAIN, "--port",
+                             str(first.tcp_port), "--udp-port", "0",
+                             timeout=60)  # fmt: skip
     assert done.returncode == 2
     assert done.stderr.startswith("error: cannot listen")
     assert "Traceback" not in done.stderr
@@ -115,12 +113,8 @@ def test_busy_port_is_a_user_error() -> None:
 def test_a_bad_chain_file_is_one_line(tmp_path: Path) -> None:
     chain = tmp_path / "bad.yaml"
     chain.write_text("masters: [}\n")
-    done = subprocess.run(
-        [*CLI, "--chain", str(chain), "--port", "0", "--udp-port", "0"],
-        capture_output=True,
-        text=True,
-        timeout=60,
-    )
+    done = run_cli_child("sim", "--chain", chain, "--port", "0", "--udp-port", "0",
+                         timeout=60)  # fmt: skip
     assert done.returncode == 2
     assert done.stderr.count("\n") == 1
     assert "bad.yaml" in done.stderr
@@ -141,27 +135,17 @@ time.sleep(60)
 """
 
 
-def _alive(pid: int) -> bool:
-    """True while `pid` runs (a zombie waiting for its reaper counts as gone)."""
-    try:
-        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    except FileNotFoundError:
-        return False
-    return fields[0] != "Z"
-
-
 def test_the_simulator_follows_a_parent_that_dies_without_cleaning_up() -> None:
-    parent = subprocess.Popen(
-        [sys.executable, "-c", PARENT_SCRIPT, str(DEMO_CHAIN)],
-        stdout=subprocess.PIPE,
-        text=True,
+    parent = ChildProcess(
+        [sys.executable, "-c", PARENT_SCRIPT, str(DEMO_CHAIN)], "parent"
     )
-    assert parent.stdout is not None
-    sim_pid = int(parent.stdout.readline())
-    assert _alive(sim_pid)
-    parent.send_signal(signal.SIGKILL)
-    parent.wait(10)
+    with parent:
+        parent.launch()
+        sim_pid = int(wait_for_line(parent, r"^\d+$", 60))
+        assert running(sim_pid)
+        os.kill(parent.pid, signal.SIGKILL)
+        parent.wait(10)
     deadline = time.monotonic() + 10
-    while _alive(sim_pid) and time.monotonic() < deadline:
+    while running(sim_pid) and time.monotonic() < deadline:
         time.sleep(0.05)
-    assert not _alive(sim_pid)
+    assert not running(sim_pid)

@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import json
 import re
-import subprocess
-import sys
 import zipfile
 from collections.abc import Iterator
 from pathlib import Path
@@ -15,6 +13,7 @@ import pytest
 from fastcs_ethercat.terminals.files import read_terminal_file
 from fastcs_ethercat.terminals.schema import schema_text
 from tests.conftest import DLS_TYPES
+from tests.processes import run_cli_child
 
 from .test_terminals_support import (
     ESI,
@@ -160,14 +159,9 @@ def test_update_cache_from_a_local_file_then_use_it(
 
 @pytest.mark.e2e
 def test_update_cache_subprocess_network_failure(tmp_path: Path) -> None:
-    done = subprocess.run(
-        [sys.executable, "-c", "from fastcs_ethercat.cli import app; app()",
-         "terminals", "update-cache", "--url", "http://127.0.0.1:9/"],
-        capture_output=True,
-        text=True,
-        timeout=60,
-        env={"XDG_CACHE_HOME": str(tmp_path), "PATH": "/usr/bin:/bin"},
-    )  # fmt: skip
+    done = run_cli_child("terminals", "update-cache", "--url", "http://127.0.0.1:9/",
+                         env={"XDG_CACHE_HOME": str(tmp_path), "PATH": "/usr/bin:/bin"},
+                         timeout=60)  # fmt: skip
     assert done.returncode == 2
     assert done.stderr.startswith("error: cannot download http://127.0.0.1:9/")
     assert done.stderr.count("\n") == 1

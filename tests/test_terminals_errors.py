@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import shutil
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
+
+from tests.processes import run_cli_child
 
 from .test_terminals_support import ESI_ARGS, TERMINALS, cache_home, run_cli
 
@@ -176,13 +176,7 @@ def test_other_commands_report_bad_files_the_same_way(tmp_path: Path) -> None:
 @pytest.mark.e2e
 def test_the_console_script_prints_one_line(tmp_path: Path) -> None:
     path, text = _broken(tmp_path, "    selected: true", "    selected: maybe")
-    done = subprocess.run(
-        [sys.executable, "-c", "from fastcs_ethercat.cli import app; app()",
-         "terminals", "check", str(path)],
-        capture_output=True,
-        text=True,
-        timeout=60,
-    )  # fmt: skip
+    done = run_cli_child("terminals", "check", path, timeout=60)
     assert done.returncode == 2
     assert done.stdout == ""
     line = _line_of(text, "selected: maybe")

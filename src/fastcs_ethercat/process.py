@@ -10,7 +10,8 @@ starts a command, keeps reading its output (so it never blocks on a full
 pipe), waits for its ready line and stops it (SIGTERM, then SIGKILL) by PID.
 The simulator (`sim.process`), the benchmarks, the demo and the tests all use
 these, so there is one protocol and one way to launch; `free_port` gives
-them the loopback ports they serve on.
+them the loopback ports they serve on (and the editor its port on the host
+it is told).
 """
 
 from __future__ import annotations
@@ -74,6 +75,9 @@ class ChildProcess:
         self.env = dict(env) if env is not None else None
         self.stdin_pipe = stdin_pipe
         """Hold the child's stdin: a child that exits at EOF follows us."""
+        self.stdin: IO[str] | None = None
+        """The child's stdin when held: what is written reaches the child;
+        closed at `stop` (EOF)."""
         self.merge_stderr = merge_stderr
         """stderr into `lines` with stdout, in order (tests that read the
         log), not into a temporary file."""
@@ -100,6 +104,7 @@ class ChildProcess:
             text=True,
             env=self.env,
         )
+        self.stdin = self._process.stdin
         self._reader = threading.Thread(target=self._read_stdout, daemon=True)
         self._reader.start()
 
@@ -133,12 +138,6 @@ class ChildProcess:
                     self.fields = fields
                     self.ready_at = time.monotonic()
             self.lines.append(line)
-
-    @property
-    def popen(self) -> subprocess.Popen[str]:
-        """The running child (its stdin, when held)."""
-        assert self._process is not None, "not started"
-        return self._process
 
     @property
     def pid(self) -> int:
@@ -177,8 +176,8 @@ class ChildProcess:
         process = self._process
         if process is None:
             return None
-        if process.stdin is not None:
-            process.stdin.close()
+        if self.stdin is not None:
+            self.stdin.close()
         if process.poll() is None:
             process.send_signal(signal.SIGTERM)
             try:
@@ -202,19 +201,20 @@ class ChildProcess:
         self.close()
 
 
-def free_port(*, tcp: bool, udp: bool) -> int:
-    """A loopback port free right now for TCP and/or UDP (for a child to serve on)."""
+def free_port(*, tcp: bool, udp: bool, host: str = LOOPBACK) -> int:
+    """A port of `host` (loopback unless told) free right now for TCP and/or
+    UDP: for a child to serve on, or a server that is told `--port 0`."""
     for _ in range(100):
         with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
-            probe.bind((LOOPBACK, 0))
+            probe.bind((host, 0))
             port = int(probe.getsockname()[1])
         kinds = [socket.SOCK_STREAM] * tcp + [socket.SOCK_DGRAM] * udp
         with contextlib.ExitStack() as held:
             try:
                 for kind in kinds:
                     sock = held.enter_context(socket.socket(socket.AF_INET, kind))
-                    sock.bind((LOOPBACK, port))
+                    sock.bind((host, port))
             except OSError:
                 continue
         return port
-    raise OSError("no free loopback port")
+    raise OSError(f"no free port on {host}")

@@ -380,11 +380,6 @@ class AdsClient:
             _refused_sums_said.add(said)
         return logging.INFO if group == IndexGroup.SUMUP_WRITE else logging.WARNING
 
-    @property
-    def single_requests(self) -> frozenset[int]:
-        """The sum groups this target refused (on this connection)."""
-        return frozenset(self._no_sums)
-
     # -- sum commands ----------------------------------------------------------
 
     async def sum_read(

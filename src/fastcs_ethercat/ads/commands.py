@@ -341,10 +341,6 @@ class NotificationStamp:
     timestamp: int
     samples: tuple[NotificationSample, ...] = ()
 
-    @property
-    def moment(self) -> datetime:
-        return filetime_to_datetime(self.timestamp)
-
 
 @dataclass(frozen=True, slots=True)
 class DeviceNotification(AdsRequest):

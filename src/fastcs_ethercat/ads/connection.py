@@ -121,10 +121,6 @@ class ConnectionStats:
     last_heard: float = 0.0
     """time.monotonic() of the last bytes from the target (any frame)."""
 
-    @property
-    def malformed_total(self) -> int:
-        return sum(self.malformed.values())
-
 
 @dataclass(slots=True)
 class _Waiter:

@@ -44,10 +44,6 @@ class ArrayDimension:
     lower_bound: int
     element_count: int
 
-    @property
-    def upper_bound(self) -> int:
-        return self.lower_bound + self.element_count - 1
-
 
 @dataclass(frozen=True, slots=True)
 class AdsDataTypeEntry(TableEntry):

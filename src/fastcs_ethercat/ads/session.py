@@ -144,10 +144,6 @@ class ClientSession:
         self._next_invoke_id = 1
 
     @property
-    def in_flight(self) -> int:
-        return len(self._in_flight)
-
-    @property
     def buffered(self) -> int:
         """Bytes of an incomplete frame waiting for the rest."""
         return self._reassembler.buffered

@@ -1,6 +1,11 @@
-"""Fault timings: how soon a lost target shows on the PVs (INVALID) and how
-soon they are valid again once it is back, and how soon an IOC started
-without its PLC serves live values once the PLC appears.
+"""Fault timings: how soon a fault shows on the PVs (INVALID) and how soon
+they are valid again once it is gone, and how soon an IOC started without
+its PLC serves live values once the PLC appears.
+
+The faults: the whole target lost (stalled, connection dropped), one slave
+out of OP or its link lost (seen through the master's diagnostics, read
+once a second), and an online change that takes the slave's PDOs away
+(another PDO group) and brings them back.
 
 The targets are the benchmark's (`report.py`); the end-to-end tests assert
 only the behaviour (INVALID, then valid again) within generous bounds.
@@ -10,6 +15,8 @@ from __future__ import annotations
 
 import asyncio
 import time
+from collections.abc import Callable
+from functools import partial
 from typing import Any, Final
 
 from aioca import FORMAT_TIME, camonitor, connect, purge_channel_caches
@@ -26,6 +33,16 @@ WAIT_S: Final = 30.0
 """Longest wait for a state; beyond it the figure is an error."""
 FAULTS: Final = (("stall", 2.0), ("drop", 0.0))
 """(fault, seconds it lasts) as the end-to-end tests inject them."""
+FAULTED_SLAVE: Final = "Term 2 (EL3104)"
+"""The scan chain's one EL3104 (behind its coupler), named as TwinCAT does."""
+SLAVE_FAULTS: Final = (
+    ("slave_preop", {"kind": "slave_state", "state": "PREOP"}),
+    ("link_lost", {"kind": "link_lost"}),
+)
+"""(figure, fault of `FAULTED_SLAVE`), each until cleared."""
+OTHER_PDO_GROUP: Final = "Compact"
+"""Activated by the online change: the PV's PDOs (the chain's "Standard"
+group, `chains.scan_slaves`) are gone until the next change restores them."""
 
 
 class SeverityWatch:
@@ -57,30 +74,53 @@ class SeverityWatch:
 
 
 async def fault_timings(context: BenchContext) -> dict[str, Any]:
-    """Per fault: loss (fault to INVALID) and recovery (cleared to valid)."""
+    """Per fault: loss (fault to INVALID) and recovery (gone to valid)."""
     figures: dict[str, Any] = {}
     slaves = scan_slaves(36, changing=True)
+    slaves[1]["name"] = FAULTED_SLAVE
     async with running(context, "faults", slaves) as up:
         pv = next(p for p in up.symbol_pvs if p.source.endswith(".Value")).name
         await connect(pv, timeout=10.0)
         watch = SeverityWatch(pv)
+        sim = up.sim
         try:
             await watch.first(time.monotonic(), invalid=False)
             for kind, lasts_s in FAULTS:
-                start = time.monotonic()
-                await asyncio.to_thread(up.sim.add_fault, kind)
-                loss = await watch.first(start, invalid=True)
-                await asyncio.sleep(max(0.0, lasts_s - (time.monotonic() - start)))
-                cleared = time.monotonic()
-                await asyncio.to_thread(up.sim.clear_faults)
-                since = max(cleared, start + loss)  # valid again after the loss
-                back = await watch.first(since, invalid=False) + (since - cleared)
-                figures[kind] = {"loss_s": loss, "recovery_s": round(back, 3)}
+                inject = partial(sim.add_fault, kind)
+                figures[kind] = await _outage(watch, inject, sim.clear_faults, lasts_s)
+            for name, fault in SLAVE_FAULTS:
+                inject = partial(sim.add_fault, **fault, name=FAULTED_SLAVE)
+                figures[name] = await _outage(watch, inject, sim.clear_faults)
+            change = partial(sim.add_fault, "online_change")
+            figures["pdo_change"] = await _outage(
+                watch,
+                partial(change, pdo_groups={FAULTED_SLAVE: OTHER_PDO_GROUP}),
+                partial(change, pdo_groups={FAULTED_SLAVE: "Standard"}),
+            )
         finally:
             watch.close()
-        net_id = up.sim.net_id
+        net_id = sim.net_id
     figures["plc_appears"] = await plc_appears(context, pv, net_id)
     return figures
+
+
+async def _outage(
+    watch: SeverityWatch,
+    inject: Callable[[], object],
+    end: Callable[[], object],
+    lasts_s: float = 0.0,
+) -> dict[str, float]:
+    """`inject` a fault, wait for INVALID, `end` it after `lasts_s` at the
+    earliest, wait for valid: seconds to each (control calls in a thread)."""
+    start = time.monotonic()
+    await asyncio.to_thread(inject)
+    loss = await watch.first(start, invalid=True)
+    await asyncio.sleep(max(0.0, lasts_s - (time.monotonic() - start)))
+    ended = time.monotonic()
+    await asyncio.to_thread(end)
+    since = max(ended, start + loss)  # valid again after the loss
+    back = await watch.first(since, invalid=False) + (since - ended)
+    return {"loss_s": loss, "recovery_s": round(back, 3)}
 
 
 async def plc_appears(context: BenchContext, pv: str, net_id: str) -> dict[str, Any]:

@@ -40,6 +40,19 @@ LOSS_TARGET_S = 1.0
 """A lost target to every PV INVALID with COMM (issue 5)."""
 RECOVERY_TARGET_S = 5.0
 """The target back to PVs valid and updating (issue 5)."""
+SLAVE_ALARM_TARGET_S = 2.5
+"""One slave out of OP, or its link lost, to its PVs INVALID: the master's
+diagnostics are read once a second."""
+SLAVE_BACK_TARGET_S = 3.0
+"""That slave back in OP to its PVs valid again."""
+PDO_CHANGE_TARGET_S = 2.0
+"""An online change that takes a slave's PDOs away to their PVs INVALID."""
+FAULT_TARGETS_S = {
+    "slave_preop": (SLAVE_ALARM_TARGET_S, SLAVE_BACK_TARGET_S),
+    "link_lost": (SLAVE_ALARM_TARGET_S, RECOVERY_TARGET_S),
+    "pdo_change": (PDO_CHANGE_TARGET_S, RECOVERY_TARGET_S),
+}
+"""(INVALID, valid again) targets of the faults other than a lost target."""
 LIVE_TARGET_S = 5.0
 """An IOC started without its PLC: live values after the PLC appears (issue 11)."""
 ESI_RATIO_TARGET = 1.5
@@ -126,8 +139,11 @@ def fault_lines(faults: Any) -> list[str]:
             live = _seconds(value.get("live_s"), LIVE_TARGET_S)
             lines.append(f"PLC appears after start: live in {live}")
         else:
-            loss = _seconds(value.get("loss_s"), LOSS_TARGET_S)
-            back = _seconds(value.get("recovery_s"), RECOVERY_TARGET_S)
+            loss_target, back_target = FAULT_TARGETS_S.get(
+                kind, (LOSS_TARGET_S, RECOVERY_TARGET_S)
+            )
+            loss = _seconds(value.get("loss_s"), loss_target)
+            back = _seconds(value.get("recovery_s"), back_target)
             lines.append(f"fault {kind}: INVALID in {loss}, valid again in {back}")
     return lines
 

@@ -9,21 +9,14 @@ start (the same discovery as the IOC's).
 from __future__ import annotations
 
 import os
-import socket
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from fastcs_ethercat.errors import UserError
+from fastcs_ethercat.process import free_port
 
 READY = "fastcs-ethercat terminals edit ready: url={url}"
-
-
-def free_port(host: str) -> int:
-    """A port the OS has free on `host` now (for `--port 0`)."""
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
-        probe.bind((host, 0))
-        return int(probe.getsockname()[1])
 
 
 def run_editor(
@@ -67,7 +60,7 @@ def run_editor(
     from fastcs_ethercat.editor.gate import TokenGate, editor_token
 
     token = editor_token(host, os.environ)
-    port = port or free_port(host)
+    port = port or free_port(tcp=True, udp=False, host=host)
     url = f"http://{host}:{port}/" + (f"?token={token}" if token else "")
     if token is not None:
         app.add_middleware(TokenGate, token=token)

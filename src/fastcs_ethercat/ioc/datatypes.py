@@ -36,7 +36,7 @@ import re
 from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import cached_property
-from typing import Any, Final, Protocol, TypeVar
+from typing import Any, Final, Protocol, TypeVar, cast
 
 import numpy as np
 from fastcs.datatypes import Bool, DataType, Enum, Float, Int, String, Waveform
@@ -108,7 +108,9 @@ def has_value_alarms(datatype: DataType) -> bool:
 
 def severity_table(datatype: DataType) -> Any:
     """`datatype.alarm_severity`, or None for a datatype without alarms."""
-    return datatype.alarm_severity if has_value_alarms(datatype) else None  # pyright: ignore[reportAttributeAccessIssue]
+    if not has_value_alarms(datatype):
+        return None
+    return cast(ValueAlarms, datatype).alarm_severity
 
 
 @dataclass(frozen=True)

@@ -242,10 +242,6 @@ class PollLayout:
             )
         return cls(list(points), chunks)
 
-    @property
-    def item_count(self) -> int:
-        return sum(len(chunk.items) for chunk in self.chunks)
-
     def invalidate(self) -> None:
         for chunk in self.chunks:
             chunk.invalidate()

@@ -50,10 +50,6 @@ class PollStats:
     total_cycle_s: float = 0.0
     last_error: str = ""
 
-    @property
-    def mean_cycle_s(self) -> float:
-        return self.total_cycle_s / self.cycles if self.cycles else 0.0
-
 
 class Poller:
     """Polls `points` through `client` (the master's device port), each by

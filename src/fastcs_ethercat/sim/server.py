@@ -230,10 +230,6 @@ class AmsServer:
             self._listener = None
         self.drop_connections()
 
-    @property
-    def listening(self) -> bool:
-        return self._listener is not None
-
     def connection_opened(self, connection: AmsConnection) -> None:
         self.connections.add(connection)
         self.counters.connections_accepted += 1
@@ -410,10 +406,6 @@ class AmsServer:
                 self._refusing = False
                 self._reopen_task = None
                 return
-
-    @property
-    def refusing(self) -> bool:
-        return self._refusing
 
     @property
     def stalled(self) -> bool:
