@@ -640,11 +640,16 @@ def test_deviocstats_names_and_the_heartbeat(demo: Demo) -> None:
         10,
     )
     uptime = caget(demo.ioc, "-S", p("UPTIME"))[p("UPTIME")]
+    cainfo = demo.ioc.tool("cainfo", p("UPTIME"))
+    on_pva = {n: demo.ioc.tool("pvget", p(n)) for n in ("HEARTBEAT", "UPTIME")}
     pid, count, stamp = (demo.screens.parent / "heartbeat").read_text().split()
     start_count = (demo.screens.parent / "runtime" / "ioc" / "start-count").read_text()
 
     assert later and int(later[p("HEARTBEAT")]) >= 1
     assert re.fullmatch(r"0 days, \d\d:\d\d:\d\d", uptime), uptime
+    assert "DBF_CHAR" in cainfo  # a char waveform on CA, not a stringin
+    assert re.search(r"\s\d+\s*$", on_pva["HEARTBEAT"]), on_pva  # aliases on PVA
+    assert re.search(r'"0 days, \d\d:\d\d:\d\d"', on_pva["UPTIME"]), on_pva
     assert 0 <= float(later[p("IOC_CPU_LOAD")]) <= 100
     assert 20e6 < float(later[p("MEM_USED")]) < 4096e6  # bytes, as devIocStats
     assert int(later[p("START_CNT")]) == int(start_count) == 1
