@@ -14,10 +14,12 @@
 
 ARG BASE_IMAGE=python:3.11-slim
 ARG WHEELS=index
-# The version (setuptools-scm's, from the git tag): the image label, and the
-# wheel's where the build context has no .git (WHEELS=index):
-#   docker build --build-arg VERSION=$(git describe --tags) .
-# deploy/build-image.sh passes the version of the wheel it built.
+# The version (setuptools-scm's, from the git tag: v1.4.0 gives 1.4.0): the
+# image label, and the wheel's, as the build context has no .git
+# (WHEELS=index):
+#   docker build --build-arg VERSION=$(python -m setuptools_scm) .
+# deploy/build-image.sh passes the version of the wheel it built; CI passes
+# setuptools-scm's.
 ARG VERSION=0+unknown
 
 # Wheels from the package index: the locked dependencies, hash-checked, then

@@ -179,6 +179,40 @@ def test_ci_keeps_the_editor_screenshots_of_every_run() -> None:
     assert upload["with"]["path"].rstrip("/") == folder
 
 
+def _dockerfile_stages(text: str) -> dict[str, str]:
+    """The Dockerfile's text by stage name (`FROM ... AS name`)."""
+    stages = re.split(r"^FROM ", text, flags=re.MULTILINE)[1:]
+    return {stage.split("\n", 1)[0].split()[-1]: stage for stage in stages}
+
+
+def test_ci_builds_the_image_with_the_version_of_the_tag() -> None:
+    """The build context has no .git (.dockerignore): without the VERSION
+    build argument the image's wheel and label say 0+unknown, not the tag."""
+    workflow = _yaml(REPO_ROOT / ".github" / "workflows" / "ci.yml")
+    steps = workflow["jobs"]["image"]["steps"]
+    runs = [step.get("run", "") for step in steps]
+    [checkout] = [s for s in steps if s.get("uses", "").startswith("actions/checkout")]
+    [versioned] = [i for i, run in enumerate(runs) if "setuptools_scm" in run]
+    [built] = [i for i, run in enumerate(runs) if "docker build" in run]
+    [smoke] = [run for run in runs if "--version" in run]
+    dockerfile = (REPO_ROOT / "Dockerfile").read_text(encoding="utf-8")
+    stages = _dockerfile_stages(dockerfile)
+    how_to = (REPO_ROOT / "docs" / "how-to" / "deploy.md").read_text(encoding="utf-8")
+
+    assert checkout["with"]["fetch-depth"] == 0  # the tags
+    assert '"VERSION=$(python -m setuptools_scm)" >> "$GITHUB_ENV"' in runs[versioned]
+    assert versioned < built
+    assert '--build-arg VERSION="$VERSION"' in runs[built]
+    assert '= "fastcs-ethercat $VERSION"' in smoke
+    assert "ARG VERSION\n" in stages["wheels-index"]
+    assert "SETUPTOOLS_SCM_PRETEND_VERSION=${VERSION}" in stages["wheels-index"]
+    assert "ARG VERSION\n" in stages["runtime"]
+    assert 'org.opencontainers.image.version="${VERSION}"' in stages["runtime"]
+    for text in (how_to, dockerfile):  # what they suggest: v1.4.0 is no version
+        assert "VERSION=$(git describe" not in text
+        assert "VERSION=$(python -m setuptools_scm)" in text
+
+
 def test_licence_and_build_context() -> None:
     licence = (REPO_ROOT / "LICENSE").read_text(encoding="utf-8")
     project = tomllib.loads((REPO_ROOT / "pyproject.toml").read_text())

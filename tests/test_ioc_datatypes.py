@@ -18,11 +18,13 @@ from fastcs_ethercat.ioc.attributes import (
 )
 from fastcs_ethercat.ioc.datatypes import (
     EXACT_DOUBLE_INTEGER,
+    MBB_MAX_STATES,
     AlarmBool,
     AlarmInt,
     ExactFloat,
     IntegralFloat,
     UnsupportedTypeError,
+    ca_record_type,
     description,
     engineering,
     enum_class,
@@ -224,3 +226,25 @@ def test_values_written_in_engineering_units_become_counts() -> None:
     shown = engineering_value(point("INT", PointKind.ARRAY), [0, 16384, -32767])
     assert shown.tolist() == pytest.approx([0.0, 5.00015, -10.0], abs=1e-5)
     assert engineering_value(unscaled, 7) == 7
+
+
+def test_the_record_fastcs_makes_for_each_datatype() -> None:
+    """What the autosave request names fields of; an enum of more members
+    than an mbbi has states is a long string (a waveform), as FastCS does."""
+    from fastcs.transports.epics.ca.util import MBB_MAX_CHOICES
+
+    states = enum_class("States", {i: f"S{i}" for i in range(MBB_MAX_STATES)})
+    more = enum_class("More", {i: f"S{i}" for i in range(MBB_MAX_STATES + 1)})
+
+    assert MBB_MAX_STATES == MBB_MAX_CHOICES
+    assert [ca_record_type(t) for t in (Bool(), Int(), Float(), Enum(states))] == [
+        "bi", "longin", "ai", "mbbi"
+    ]  # fmt: skip
+    assert [
+        ca_record_type(t, output=True) for t in (Bool(), Int(), Float(), Enum(states))
+    ] == ["bo", "longout", "ao", "mbbo"]
+    assert {
+        ca_record_type(t, output=output)
+        for t in (Enum(more), String(), Waveform(np.float64, (4,)))
+        for output in (False, True)
+    } == {"waveform"}

@@ -231,23 +231,48 @@ def test_caput_reaches_the_process_image_and_the_readback_follows(
     assert clamped
 
 
+def _put_lines(demo: Demo, tool: str, pv: str, value: str) -> list[str]:
+    """Every line the IOC says that names `pv`, from the put by `tool` on
+    (at --log-level info) until a second would have come."""
+    demo.ioc.unread()
+    since = len(demo.ioc.output)
+    said = demo.ioc.tool(tool, pv, value)
+    demo.ioc.wait_for_line(rf"{re.escape(pv)}\.VAL \S+ -> {value}$", 10)
+    time.sleep(1)  # a second line would be here by now
+    demo.ioc.unread()
+    named = [line.strip() for line in demo.ioc.output[since:] if pv in line]
+    assert named, said
+    return named
+
+
 def test_a_caput_gives_one_audit_line_naming_the_client(demo: Demo) -> None:
+    """One line: the audit's (FastCS's own `PV put` line is left to debug)."""
     symbol = "Term 24 (EP4374-0002).AO Outputs Channel 4"
     pv = demo.by_source(symbol, access="rw")
     before = caget(demo.ioc, pv)[pv]
-    demo.ioc.unread()
-    demo.ioc.tool("caput", pv, "321")
-    pattern = rf"^(\S+)@(\S+) {re.escape(pv)}\.VAL (\S+) -> 321$"
-    line = demo.ioc.wait_for_line(pattern, 10)
-    time.sleep(1)  # a second line would be here by now
-    later = demo.ioc.unread()
-    found = re.match(pattern, line.strip())
-    assert found is not None
+    [line] = _put_lines(demo, "caput", pv, "321")
+    found = re.fullmatch(rf"(\S+)@(\S+) {re.escape(pv)}\.VAL (\S+) -> 321", line)
+    assert found is not None, line
     user, host, old = found.groups()
 
-    assert user == getpass.getuser() and host  # CA's client user and host
+    assert user == getpass.getuser() and host  # CA's client user and host name
     assert float(old) == float(before)
-    assert not any(re.match(pattern, x.strip()) for x in later)
+
+
+def test_a_pvput_gives_one_audit_line_naming_the_client(demo: Demo) -> None:
+    """The same for PV Access (QSRV), where the host is the client's address:
+    QSRV gives asTrapWrite the peer's IP, not a host name."""
+    symbol = "Term 24 (EP4374-0002).AO Outputs Channel 3"
+    pv = demo.by_source(symbol, access="rw")
+    before = caget(demo.ioc, pv)[pv]
+    [line] = _put_lines(demo, "pvput", pv, "123")
+    found = re.fullmatch(rf"(\S+)@(\S+) {re.escape(pv)}\.VAL (\S+) -> 123", line)
+    assert found is not None, line
+    user, host, old = found.groups()
+
+    assert user == getpass.getuser()
+    assert host == "127.0.0.1"  # the client's address (loopback here)
+    assert float(old) == float(before)
 
 
 def test_coe_write_reaches_the_simulated_slave(demo: Demo) -> None:
@@ -599,11 +624,16 @@ def test_deviocstats_names_and_the_heartbeat(demo: Demo) -> None:
         10,
     )
     uptime = caget(demo.ioc, "-S", p("UPTIME"))[p("UPTIME")]
+    cainfo = demo.ioc.tool("cainfo", p("UPTIME"))
+    on_pva = {n: demo.ioc.tool("pvget", p(n)) for n in ("HEARTBEAT", "UPTIME")}
     pid, count, stamp = (demo.screens.parent / "heartbeat").read_text().split()
     start_count = (demo.screens.parent / "runtime" / "ioc" / "start-count").read_text()
 
     assert later and int(later[p("HEARTBEAT")]) >= 1
     assert re.fullmatch(r"0 days, \d\d:\d\d:\d\d", uptime), uptime
+    assert "DBF_CHAR" in cainfo  # a char waveform on CA, not a stringin
+    assert re.search(r"\s\d+\s*$", on_pva["HEARTBEAT"]), on_pva  # aliases on PVA
+    assert re.search(r'"0 days, \d\d:\d\d:\d\d"', on_pva["UPTIME"]), on_pva
     assert 0 <= float(later[p("IOC_CPU_LOAD")]) <= 100
     assert 20e6 < float(later[p("MEM_USED")]) < 4096e6  # bytes, as devIocStats
     assert int(later[p("START_CNT")]) == int(start_count) == 1

@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+import asyncio
 import os
 import time
 from pathlib import Path
 
+import pytest
+
+from fastcs_ethercat.ioc import heartbeat as heartbeat_module
 from fastcs_ethercat.ioc.heartbeat import Heartbeat, count_start
 from fastcs_ethercat.ioc.process_stats import (
     ProcessSample,
@@ -61,6 +65,29 @@ def test_heartbeat_file_holds_pid_count_and_time(tmp_path: Path) -> None:
     assert (int(pid), int(count)) == (os.getpid(), 1)
     assert abs(time.time() - float(stamp)) < 5
     assert [p.name for p in tmp_path.iterdir()] == ["heartbeat"]  # no temporary
+
+
+async def test_before_the_first_beat_the_file_is_kept_fresh_until_told(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """While the IOC waits for its PLC there is no scan to beat: the file is
+    rewritten all the same, the count at 0, until the scan takes over."""
+    monkeypatch.setattr(heartbeat_module, "WAITING_PERIOD_S", 0.01)
+    path = tmp_path / "heartbeat"
+    heartbeat = Heartbeat(path)
+    written = path.read_text()
+    heartbeat.keep_fresh()
+    await asyncio.sleep(0.2)
+    rewritten = path.read_text()
+    heartbeat.stop_keeping_fresh()
+    await asyncio.sleep(0)
+    stopped = path.read_text()
+    await asyncio.sleep(0.1)
+
+    assert rewritten != written  # a newer time
+    assert rewritten.split()[:2] == [str(os.getpid()), "0"]  # not a beat
+    assert path.read_text() == stopped  # no longer rewritten
+    assert [p.name for p in tmp_path.iterdir()] == ["heartbeat"]
 
 
 def test_start_count_counts_in_its_folder(tmp_path: Path) -> None:

@@ -19,6 +19,7 @@ from fastcs_ethercat.ioc.controllers.root import RootController
 from fastcs_ethercat.ioc.controllers.tree import PvEntry
 from fastcs_ethercat.ioc.plan import SystemPlan
 from fastcs_ethercat.ioc.pvlists import (
+    OPERATOR_FIELDS,
     ArchiverPolicy,
     archiver_items,
     autosave_names,
@@ -147,18 +148,66 @@ def test_include_and_exclude_patterns_choose_below_the_prefix(
     assert config.archiver.policy() == policy
 
 
-def test_autosave_holds_every_setpoint_and_coe_parameter(
+COMMAND_BITS = ("CtrlTara", "CtrlStartCalibration", "SetCounter")
+"""Outputs that start something in the terminal when set: never restored."""
+
+
+def _pv_and_field(line: str) -> tuple[str, str]:
+    pv, field = line.rsplit(".", 1)
+    return pv, field
+
+
+def test_autosave_holds_the_operators_fields_and_never_a_value(
     entries: list[PvEntry],
 ) -> None:
     names = autosave_names(entries)
-    setpoints = [e for e in entries if e.access == "rw"]
-
-    assert names == [e.name for e in setpoints]  # every rw PV is one or the other
-    assert any(e.source.startswith("CoE:") for e in setpoints)
-    assert any(e.source.startswith("Term ") for e in setpoints)
+    fields: dict[str, set[str]] = {}
+    for pv, field in map(_pv_and_field, names):
+        fields.setdefault(pv, set()).add(field)
+    by_name = {e.name: e for e in entries}
+    outputs = [e.name for e in entries if e.access == "rw"]
+    value = "LISTS:ETH1:RIO1:MOD5:CH1:Value"  # an EL3104 input
     text = autosave_text(entries, "LISTS")
+
+    assert "VAL" not in set().union(*fields.values())
+    assert set(fields) == {e.name for e in entries if e.source != "command"}
+    assert all("DESC" in kept for kept in fields.values())
+    assert {"HIHI", "LOLO", "HHSV", "LLSV", "HYST", "MDEL", "ADEL"} <= fields[value]
+    assert any(by_name[pv].record == "mbbi" and "UNSV" in f for pv, f in fields.items())
+    assert any(by_name[pv].record == "bi" and "OSV" in f for pv, f in fields.items())
+    assert all(
+        set(OPERATOR_FIELDS[by_name[pv].record]) == f for pv, f in fields.items()
+    )
+    for bit in COMMAND_BITS:
+        bits = [n for n in outputs if n.endswith(f":{bit}")]
+        assert bits and not set(bits) & set(names)
+        assert all(fields[pv] == {"ZSV", "OSV", "COSV", "DESC"} for pv in bits)
+    coe = [e.name for e in entries if e.source.startswith("CoE:") and e.access == "rw"]
+    assert coe and not set(coe) & set(names)  # the terminal holds them
     assert text.splitlines()[2:] == names
     assert all(line.startswith("#") for line in text.splitlines()[:2])
+
+
+def test_each_pv_names_the_record_fastcs_serves_it_as(
+    entries: list[PvEntry],
+) -> None:
+    kinds = {(e.datatype, e.access, e.record) for e in entries}
+
+    assert {
+        ("Bool", "r", "bi"),
+        ("Bool", "rw", "bo"),
+        ("Int", "r", "longin"),
+        ("Int", "rw", "longout"),
+        ("ExactFloat", "r", "ai"),
+        ("ExactFloat", "rw", "ao"),
+        ("IntegralFloat", "rw", "ao"),
+        ("Enum", "r", "mbbi"),
+        ("Enum", "rw", "mbbo"),
+        ("String", "r", "waveform"),
+        ("Waveform", "r", "waveform"),
+        ("Command", "w", ""),
+    } <= kinds
+    assert all(record in (*OPERATOR_FIELDS, "") for _, _, record in kinds)
 
 
 def test_the_lists_are_written_into_a_folder(
@@ -180,15 +229,14 @@ def _check_against_the_pv_list(text: str, archiver: str, autosave: str) -> None:
     readable = [
         item["pv"] for item in archiver_items(entries, POLL_RATE_HZ, prefix="LISTS")
     ]
-    settable = [
-        name
-        for name, access, _, source in rows
-        if access == "rw" and source not in ("ioc", "command")
-    ]
+    records = {name for name, _, _, source in rows if source != "command"}
+    kept = [line for line in autosave.splitlines() if not line.startswith("#")]
+    any_field = set().union(*OPERATOR_FIELDS.values())
     assert [item["pv"] for item in json.loads(archiver)] == readable
-    assert [line for line in autosave.splitlines() if not line.startswith("#")] == (
-        settable
+    assert {pv for pv, field in map(_pv_and_field, kept) if field == "DESC"} == (
+        records
     )
+    assert {field for _, field in map(_pv_and_field, kept)} <= any_field
 
 
 @pytest.mark.e2e

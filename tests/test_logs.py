@@ -103,3 +103,26 @@ def test_a_flood_becomes_a_few_lines_and_a_count(
 def test_an_unknown_level_is_refused() -> None:
     with pytest.raises(ValueError, match="loud"):
         setup_logging("loud")
+
+
+def test_a_level_set_for_a_module_holds_for_its_loguru_lines(
+    records: list[logging.LogRecord],
+) -> None:
+    """How the audit leaves FastCS's put line (`fastcs.transports.epics.ca.ioc`,
+    INFO) to DEBUG: loguru names the module, `logging` holds its level."""
+    from fastcs.logging import logger
+
+    module = logging.getLogger(__name__)
+    module.setLevel(logging.WARNING)
+    try:
+        logger.info("PV put: X = 1")
+        logger.warning("a warning of the same module")
+    finally:
+        module.setLevel(logging.NOTSET)
+    logger.info("PV put: X = 2")
+
+    shown = [(record.name, record.getMessage()) for record in records]
+    assert shown == [
+        ("fastcs", "a warning of the same module"),
+        ("fastcs", "PV put: X = 2"),
+    ]

@@ -4,7 +4,8 @@
 #
 # Passes while the IOC's 1 s health scan runs (the one that moves HEARTBEAT),
 # whether or not the PLC answers: a PLC that is away is an alarm, not a
-# restart. Fails when the IOC process is gone, stopped, or its heartbeat file
+# restart. Before it serves (waiting for a PLC that is away at its first
+# start), the IOC rewrites the file every second all the same. Fails when the IOC process is gone, stopped, or its heartbeat file
 # is older than FASTCS_ETHERCAT_LIVENESS_MAX_AGE_S (default 15): a hung event
 # loop. Pure bash and /proc, well inside Kubernetes' 1 s probe timeout.
 file=${FASTCS_ETHERCAT_HEARTBEAT_FILE:-/tmp/fastcs-ethercat.heartbeat}

@@ -111,7 +111,7 @@ def _to_logging(message: Message) -> None:
         exc_info = (exception.type, exception.value, exception.traceback)
     target = logging.getLogger(name)
     level = record["level"].no
-    if not target.isEnabledFor(level):
+    if not (target.isEnabledFor(level) and _module_allows(record["name"], level)):
         return
     target.handle(
         target.makeRecord(
@@ -125,6 +125,13 @@ def _to_logging(message: Message) -> None:
             record["function"],
         )
     )
+
+
+def _module_allows(module: str | None, level: int) -> bool:
+    """The level of the `logging` logger of a loguru record's module (FastCS's
+    `fastcs.transports.epics.ca.ioc`, say) holds for its records too, though
+    they are shown under the name FastCS binds (`fastcs`)."""
+    return not module or logging.getLogger(module).isEnabledFor(level)
 
 
 def first_names(names: Sequence[str], shown: int = NAMES_SHOWN) -> str:

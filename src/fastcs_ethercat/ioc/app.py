@@ -70,7 +70,7 @@ def serve(
     async def prepare() -> None:
         await root.prepare()
 
-    if config.audit_puts and config.transports.ca:
+    if config.audit_puts:  # CA or PVA: both put through the database
         from fastcs_ethercat.ioc.audit import install_put_audit
 
         install_put_audit()

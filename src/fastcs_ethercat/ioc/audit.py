@@ -11,12 +11,20 @@ the IOC's stdout (the container log):
 
 and loads an ACF whose every WRITE is TRAPWRITE. A site's ACF (or the
 read-only one) is loaded in its place: `trapwrite_acf` adds TRAPWRITE to its
-WRITE rules, so its puts are audited too.
+WRITE rules, so its puts are audited too. For a PV Access put the host is
+the client's IP address: QSRV gives asTrapWrite the peer's address, where
+the CA server gives the host name the client sent.
+
+The listener prints each line in pieces (a printf per word): C's stdout is
+given a line buffer of its own, so no other output lands inside a line, and
+FastCS's own line of each put (`PV put: X = v` at INFO, without the client)
+is left to DEBUG, so at INFO a put is one line.
 """
 
 from __future__ import annotations
 
 import ctypes
+import logging
 import re
 from pathlib import Path
 from typing import Final
@@ -26,6 +34,11 @@ _WRITE_RULE: Final = re.compile(r"\bRULE\(\s*(\d+)\s*,\s*WRITE\s*\)")
 AUDITED_ACF: Final = "audited.acf"
 _IOLBF: Final = 1
 """glibc's `_IOLBF` (line buffered), for `setvbuf`."""
+LINE_BUFFER_BYTES: Final = 8192
+"""C stdout's line buffer: longer than any put line (an array's is cut
+by softioc's listener to a few hundred bytes)."""
+FASTCS_PUT_LOGGER: Final = "fastcs.transports.epics.ca.ioc"
+"""The FastCS module that logs each put to a record at INFO (`PV put`)."""
 
 
 def install_put_audit() -> None:
@@ -34,20 +47,33 @@ def install_put_audit() -> None:
     _line_buffered_c_stdout()
     import softioc.pvlog  # noqa: F401  (importing it installs the listener)
 
+    if not logging.getLogger().isEnabledFor(logging.DEBUG):
+        logging.getLogger(FASTCS_PUT_LOGGER).setLevel(logging.WARNING)
+
 
 def _line_buffered_c_stdout() -> None:
-    """C's stdout a line at a time (libc `setvbuf`): the put lines are
-    printed by C, and on a pipe (a container without a tty, a log shipper)
-    C would hold them until 4 KiB have gathered."""
+    """C's stdout a line at a time (libc `setvbuf`), in a buffer of its own.
+
+    On a pipe (a container without a tty, a log shipper) C would hold the
+    put lines until 4 KiB have gathered. Under PYTHONUNBUFFERED (as in the
+    image) Python has made C's stdout unbuffered, with a 1-byte buffer that
+    line buffering without a buffer of its own would keep: every printf
+    would be written on its own, and a put line split by other output. The
+    buffer is malloc'd and never freed: C writes into it until exit.
+    """
     libc = ctypes.CDLL(None)
     stdout = ctypes.c_void_p.in_dll(libc, "stdout")
+    libc.malloc.argtypes = (ctypes.c_size_t,)
+    libc.malloc.restype = ctypes.c_void_p
     libc.setvbuf.argtypes = (
         ctypes.c_void_p,
-        ctypes.c_char_p,
+        ctypes.c_void_p,
         ctypes.c_int,
         ctypes.c_size_t,
     )
-    libc.setvbuf(stdout, None, _IOLBF, 0)
+    libc.fflush(stdout)
+    buffer = libc.malloc(LINE_BUFFER_BYTES)
+    libc.setvbuf(stdout, buffer, _IOLBF, LINE_BUFFER_BYTES if buffer else 0)
 
 
 def trapwrite_text(text: str) -> str:

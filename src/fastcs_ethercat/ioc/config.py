@@ -276,8 +276,8 @@ class IocConfig(_Strict):
     )
     audit_puts: bool = Field(
         default=True,
-        description="Log every put through the EPICS database (CA, and PVA if "
-        "served by QSRV) once on stdout: client user@host, PV.FIELD, old -> new.",
+        description="Log every put through the EPICS database (CA and PVA) once "
+        "on stdout: client user@host (PVA: the client's IP), PV.FIELD, old -> new.",
     )
     read_only: bool = Field(
         default=False,

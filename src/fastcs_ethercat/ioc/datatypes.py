@@ -53,6 +53,8 @@ MAX_DESCRIPTION_LENGTH: Final = 40
 IOC from starting (softioc asserts), so descriptions go through `description`."""
 EXACT_DOUBLE_INTEGER: Final = 2**53
 """Integers up to this magnitude survive the trip through an EPICS double."""
+MBB_MAX_STATES: Final = 16
+"""FastCS serves an enum of more members as a long string, not an mbbi/mbbo."""
 
 
 class UnsupportedTypeError(ValueError):
@@ -155,6 +157,23 @@ def type_label(datatype: DataType) -> str:
     if has_value_alarms(datatype):
         kind = kind.__mro__[1]
     return kind.__name__
+
+
+def ca_record_type(datatype: DataType, *, output: bool = False) -> str:
+    """The EPICS record FastCS serves `datatype` as on CA: its in record, or
+    with `output` the out record of a writable PV. Texts, enums of more than
+    `MBB_MAX_STATES` members and arrays are softioc waveforms."""
+    match datatype:
+        case Bool():
+            return "bo" if output else "bi"
+        case Int():
+            return "longout" if output else "longin"
+        case Float():
+            return "ao" if output else "ai"
+        case Enum() if len(datatype.members) <= MBB_MAX_STATES:
+            return "mbbo" if output else "mbbi"
+        case _:
+            return "waveform"
 
 
 def alarm_enum(enum_cls: type[E], severities: Mapping[E, int]) -> AlarmEnum:

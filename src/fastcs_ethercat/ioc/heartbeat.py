@@ -6,6 +6,12 @@ answers. Each beat also rewrites the heartbeat file (`runtime.heartbeat_file`,
 "PID COUNT UNIX-TIME"), which the image's liveness script reads: a file that
 stops changing is an IOC that stopped serving.
 
+The file is written from the moment the IOC starts to look for its chain,
+before there is a scan to beat: while it waits for a PLC that is away (no
+`chain:` and no chain kept from an earlier start) `keep_fresh` rewrites it
+every `WAITING_PERIOD_S`, the count at 0, so the liveness probe passes (a
+PLC away is an alarm, not a restart) and the preStop script finds the PID.
+
 `START_CNT` counts the starts with one state folder (`runtime.state_dir`: in
 the image the chart's persistent /epics/runtime), where devIocStats counts
 through autosave.
@@ -13,6 +19,8 @@ through autosave.
 
 from __future__ import annotations
 
+import asyncio
+import contextlib
 import logging
 import os
 import time
@@ -27,6 +35,8 @@ logger = logging.getLogger(__name__)
 HEARTBEAT_MAX: Final = 2**31 - 1
 """Where the count wraps to 1 (a longin), as devIocStats' HEARTBEAT does."""
 START_COUNT_FILE: Final = "start-count"
+WAITING_PERIOD_S: Final = 1.0
+"""How often the file is rewritten before the health scan beats."""
 
 
 @dataclass
@@ -35,6 +45,7 @@ class Heartbeat:
 
     path: Path | None = field(default_factory=heartbeat_file)
     count: int = 0
+    _fresh: asyncio.Task[None] | None = field(default=None, init=False, repr=False)
 
     def __post_init__(self) -> None:
         self._write()  # the PID, for the preStop script, before the first beat
@@ -43,6 +54,23 @@ class Heartbeat:
         self.count = self.count + 1 if self.count < HEARTBEAT_MAX else 1
         self._write()
         return self.count
+
+    def keep_fresh(self) -> None:
+        """Rewrite the file every `WAITING_PERIOD_S` on the running loop, the
+        count unchanged, until `stop_keeping_fresh` (the scan beats then)."""
+        if self._fresh is None and self.path is not None:
+            self._fresh = asyncio.get_running_loop().create_task(self._rewrite())
+
+    def stop_keeping_fresh(self) -> None:
+        if self._fresh is not None:
+            self._fresh.cancel()
+            self._fresh = None
+
+    async def _rewrite(self) -> None:
+        with contextlib.suppress(asyncio.CancelledError):
+            while self.path is not None:
+                await asyncio.sleep(WAITING_PERIOD_S)
+                self._write()
 
     def _write(self) -> None:
         if self.path is None:

@@ -29,11 +29,12 @@ DEVIOCSTATS_NAMES: Final = {
     "StartCount": "START_CNT",
 }
 """The root's PVs with devIocStats' meaning -> devIocStats' names, served as
-CA aliases (PVA has no aliases: there they keep the PascalCase names)."""
+record aliases: on CA, and on PVA too (QSRV serves a record's aliases)."""
 
 
 def deviocstats_aliases(prefix: str) -> dict[str, str]:
-    """FastCS's CA aliases (full PV -> alias) of `DEVIOCSTATS_NAMES`."""
+    """The record aliases (full PV -> alias) of `DEVIOCSTATS_NAMES`, given to
+    FastCS's CA transport, whose records QSRV also serves."""
     return {
         f"{prefix}:{ours}": f"{prefix}:{theirs}"
         for ours, theirs in DEVIOCSTATS_NAMES.items()

@@ -16,8 +16,15 @@ from PV names, so they follow whatever naming scheme serves:
   and the `_RBV` readbacks of outputs only when asked; commands never. The
   config's include/exclude patterns (globs over the PV names below the
   prefix) choose among the rest.
-- autosave: an autosave request file (`.req`, one PV a line, its VAL field)
-  of what an operator sets: output setpoints and writable CoE parameters.
+- autosave: an autosave request file (`.req`, one `PV.FIELD` a line) of
+  what an operator sets on the records and the IOC alone holds: alarm limits
+  and severities, hysteresis, deadbands, DESC, by record type
+  (`OPERATOR_FIELDS`). Never a VAL: an output's value is the PLC's (restored
+  at boot it would be written to the PLC, and a command bit such as `Tara`
+  or `SetCounter` would fire), an input's is the next poll's, and a CoE
+  parameter's is stored in the terminal itself (restored, it would be
+  written to the terminal at every start). The IOC has no soft settings of
+  its own to add: what it is told lives in its config file.
 """
 
 from __future__ import annotations
@@ -48,6 +55,25 @@ PVA_SCHEME: Final = "pva://"
 """The Archiver Appliance reads a PV named so over PV Access."""
 ARCHIVER_FILE: Final = "archiver.json"
 AUTOSAVE_FILE: Final = "autosave.req"
+NUMBER_FIELDS: Final = (
+    "HIHI", "HIGH", "LOW", "LOLO", "HHSV", "HSV", "LSV", "LLSV",
+    "HYST", "MDEL", "ADEL",
+)  # fmt: skip
+"""Alarm limits, their severities, hysteresis and deadbands of a number."""
+STATE_FIELDS: Final = ("ZSV", "OSV", "COSV")
+"""The severities of a bit's two states and of a change of state."""
+OPERATOR_FIELDS: Final[dict[str, tuple[str, ...]]] = {
+    "ai": (*NUMBER_FIELDS, "DESC"),
+    "ao": (*NUMBER_FIELDS, "DESC"),
+    "longin": (*NUMBER_FIELDS, "DESC"),
+    "longout": (*NUMBER_FIELDS, "DESC"),
+    "bi": (*STATE_FIELDS, "DESC"),
+    "bo": (*STATE_FIELDS, "DESC"),
+    "mbbi": ("UNSV", "COSV", "DESC"),
+    "mbbo": ("UNSV", "COSV", "DESC"),
+    "waveform": ("DESC",),
+}
+"""Record type -> the operator's fields autosave keeps (never VAL)."""
 
 
 class PvListFormat(StrEnum):
@@ -140,19 +166,21 @@ def archiver_text(
 
 
 def autosave_names(entries: Sequence[PvEntry]) -> list[str]:
-    """Output setpoints and writable CoE parameters."""
+    """`PV.FIELD` of each operator setting of each served record (commands
+    have none)."""
     return [
-        entry.name
+        f"{entry.name}.{field}"
         for entry in entries
-        if entry.access == "rw" and (_from_target(entry) or _is_coe(entry))
+        for field in OPERATOR_FIELDS.get(entry.record, ())
     ]
 
 
 def autosave_text(entries: Sequence[PvEntry], prefix: str) -> str:
-    """An autosave request file (the VAL field of each PV)."""
+    """An autosave request file of the operator's settings, no value."""
     header = (
-        f"# autosave request of {prefix}: output setpoints and CoE parameters\n"
-        "# (written by fastcs-ethercat; one PV a line, its VAL field)\n"
+        f"# autosave request of {prefix}: alarm limits, severities, deadbands,"
+        " DESC\n"
+        "# (written by fastcs-ethercat; one PV.FIELD a line; never a VAL)\n"
     )
     return header + "".join(f"{name}\n" for name in autosave_names(entries))
 
@@ -193,6 +221,7 @@ def write_pv_lists(
 
 
 __all__ = [
+    "OPERATOR_FIELDS",
     "ArchiverPolicy",
     "PvListFormat",
     "archiver_items",

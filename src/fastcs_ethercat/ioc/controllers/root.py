@@ -170,7 +170,8 @@ class RootController(Controller):
         self.rates = RateTracker()
         self.process = ProcessStats()
         self.heartbeat: Heartbeat | None = None
-        """Made when the IOC serves (not for `--list-pvs`)."""
+        """Made when the IOC starts to serve, before it looks for its chain
+        (not for `--list-pvs`)."""
         self.start_count = 0
         self._plan: SystemPlan | None = None
         self._names: PvNames | None = None
@@ -198,7 +199,13 @@ class RootController(Controller):
         """Find the plan and build the tree (FastCS calls this before serving)."""
         if self._plan is not None:
             return
-        plan, connection = await self.plan_source()
+        self.heartbeat = Heartbeat()  # alive while it waits for the PLC
+        self.heartbeat.keep_fresh()
+        try:
+            plan, connection = await self.plan_source()
+        except BaseException:
+            self.heartbeat.stop_keeping_fresh()
+            raise
         started = time.monotonic()
         collector.pause()  # a burst of objects that live on, until `start`
         self.build(plan, connection)
@@ -396,7 +403,9 @@ class RootController(Controller):
             len(plan.masters),
             " (INVALID until the target answers)" if plan.offline_from else "",
         )
-        self.heartbeat = Heartbeat()
+        if self.heartbeat is None:
+            self.heartbeat = Heartbeat()
+        self.heartbeat.stop_keeping_fresh()  # the 1 s health scan beats now
         self.start_count = count_start()
         coe = [a for t in self.terminals() for a in t.coe_attributes]
         self.health.mark_invalid(coe, COE_READ, Status.UDF, "not read yet")

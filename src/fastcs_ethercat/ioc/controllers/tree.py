@@ -33,7 +33,7 @@ from fastcs_ethercat.ioc.controllers.terminal import (
     TerminalController,
     raw_leaf,
 )
-from fastcs_ethercat.ioc.datatypes import type_label
+from fastcs_ethercat.ioc.datatypes import ca_record_type, type_label
 from fastcs_ethercat.ioc.health import Health
 from fastcs_ethercat.ioc.naming import (
     RBV_SUFFIX,
@@ -63,6 +63,9 @@ class PvEntry:
     access: str  # "r", "w", "rw" (the `_RBV` twin is its own "r" entry)
     datatype: str
     source: str
+    record: str = ""
+    """The record type serving it on CA (`ai`, `bo`, `waveform`...; a
+    command's: ""); not in `line()`, which keeps the list's four columns."""
 
     def line(self) -> str:
         return f"{self.name} {self.access} {self.datatype} {self.source}"
@@ -293,4 +296,5 @@ def _entries(pv: str, attr: Attribute) -> Iterator[PvEntry]:
     else:
         source = "ioc"
     for suffix, access in _pvs_of(attr):
-        yield PvEntry(pv + suffix, access, datatype, source)
+        record = ca_record_type(attr.datatype, output="w" in access)
+        yield PvEntry(pv + suffix, access, datatype, source, record)
