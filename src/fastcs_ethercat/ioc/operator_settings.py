@@ -17,41 +17,22 @@ poll's.
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Iterable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
 
-from fastcs_ethercat.errors import UserError
 from fastcs_ethercat.ioc.dbaccess import get_text
 from fastcs_ethercat.ioc.fastcs_adapter import record_names
+from fastcs_ethercat.ioc.pvlists import OPERATOR_FIELDS
 
 if TYPE_CHECKING:
     from fastcs.controllers import ControllerAPI
 
+logger = logging.getLogger(__name__)
+
 SAVE_PERIOD_S: Final = 10.0
 """How often softioc's autosave looks for changed settings."""
-NUMBER_FIELDS: Final = (
-    "HIHI", "HIGH", "LOW", "LOLO", "HHSV", "HSV", "LSV", "LLSV",
-    "HYST", "MDEL", "ADEL",
-)  # fmt: skip
-"""Alarm limits, their severities, hysteresis and deadbands of a number."""
-FIELDS_OF: Final[dict[str, tuple[str, ...]]] = {
-    "ai": (*NUMBER_FIELDS, "DESC"),
-    "longin": (*NUMBER_FIELDS, "DESC"),
-    "int64in": (*NUMBER_FIELDS, "DESC"),
-    "ao": (*NUMBER_FIELDS, "DESC"),
-    "longout": (*NUMBER_FIELDS, "DESC"),
-    "int64out": (*NUMBER_FIELDS, "DESC"),
-    "bi": ("ZSV", "OSV", "COSV", "DESC"),
-    "bo": ("ZSV", "OSV", "COSV", "DESC"),
-    "mbbi": ("UNSV", "COSV", "DESC"),
-    "mbbo": ("UNSV", "COSV", "DESC"),
-    "stringin": ("DESC",),
-    "lsi": ("DESC",),
-    "lso": ("DESC",),
-    "waveform": ("DESC",),
-}
-"""Record type -> the fields kept (never VAL)."""
 
 
 class _SavedRecord:
@@ -83,10 +64,13 @@ def keep_operator_settings(
 
     try:
         directory.mkdir(parents=True, exist_ok=True)
-    except OSError as error:
-        raise UserError(
-            f"cannot make the autosave folder: {error.strerror}", path=directory
-        ) from None
+    except OSError as error:  # as with the PV lists: a warning, never the IOC
+        logger.warning(
+            "cannot keep the operators' settings in %s: %s; serving without autosave",
+            directory,
+            error.strerror,
+        )
+        return 0
     autosave.configure(
         directory, name, save_period=SAVE_PERIOD_S, timestamped_backups=False
     )
@@ -99,7 +83,7 @@ def keep_operator_settings(
                         record: Any = LookupRecord(record_name)
                     except KeyError:
                         continue
-                    fields = FIELDS_OF.get(type(record).__name__)
+                    fields = OPERATOR_FIELDS.get(type(record).__name__)
                     if fields:
                         saved = _SavedRecord(record_name, record)
                         autosave.add_pv_to_autosave(saved, record_name, list(fields))
