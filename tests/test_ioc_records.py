@@ -128,6 +128,9 @@ def _settle(rack: Rack, volts: float) -> None:
     time.sleep(0.2)  # a few poll cycles: the record has processed it
 
 
+OUTPUT = "ETH1:RIO21:MOD24:CH3:AnalogOutput"  # Term 24 (EP4374-0002), volts
+
+
 def test_operator_fields_and_the_display_range(rack: Rack) -> None:
     """An ordinary EPICS input record: soft device support, processed when
     its value is put, its time from the clock record, open to operators."""
@@ -145,6 +148,16 @@ def test_operator_fields_and_the_display_range(rack: Rack) -> None:
     assert float(found[f"{rack.value}.LOPR"]) == pytest.approx(-10.0, abs=1e-3)
 
 
+def test_an_output_has_its_range_for_display_and_drive(rack: Rack) -> None:
+    output = rack.ioc.pv(OUTPUT)
+    names = ("HOPR", "LOPR", "DRVH", "DRVL")
+    found = caget(rack.ioc, *(f"{output}.{name}" for name in names))
+    hopr, lopr, drvh, drvl = (float(found[f"{output}.{name}"]) for name in names)
+
+    assert (hopr, lopr) == (drvh, drvl)
+    assert hopr > lopr
+
+
 def test_hihi_raises_major_and_hyst_holds_it(fields: Rack) -> None:
     rack = fields
     _settle(rack, 5.0)
@@ -153,12 +166,14 @@ def test_hihi_raises_major_and_hyst_holds_it(fields: Rack) -> None:
     rack.put("HIHI", "4")
     rack.put("PROC", "1")  # the limits apply from the next processing
     raised = wait_for(lambda: rack.alarm()[1:] == ["HIHI", "MAJOR"], 10)
+    on_pva = rack.ioc.tool("pvget", "-M", "json", rack.value)
     _settle(rack, 3.5)  # below HIHI, within HYST of it: still in alarm
     held = rack.alarm()
     _settle(rack, 2.5)  # below HIHI - HYST: cleared
     cleared = rack.alarm()
 
     assert raised
+    assert re.search(r"alarm:\{severity:2,status:\d,message:\"HIHI\"", on_pva), on_pva
     assert held[1:] == ["HIHI", "MAJOR"]
     assert len(cleared) == 1, cleared
 

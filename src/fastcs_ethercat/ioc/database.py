@@ -21,6 +21,7 @@ attribute is made an ordinary EPICS input record whose value the IOC puts
   VAL is overwritten by the next value, as on any input record);
 - `HOPR`/`LOPR` from the datatype's range (FastCS puts the alarm limits
   there, which scaled values do not have), so meters and bars have a range;
+  an output's too, beside the DRVL/DRVH FastCS gives it;
 - state severities (`ZSV`/`OSV` of a bi, `ZRSV`... of an mbbi) from the
   datatype's table: a set Error bit is MAJOR by record support, and an
   operator may change it.
@@ -114,6 +115,8 @@ class DatabaseTransport(EpicsCATransport):
                 for attribute in controller_api.attributes.values():
                     if isinstance(attribute, AttrR) and attribute.enabled:
                         _as_an_input_record(attribute, clock)
+                    if isinstance(attribute, AttrW) and attribute.enabled:
+                        _as_an_output_record(attribute)
         if self.autosave_dir is not None:
             keep_operator_settings(
                 self.autosave_dir, self.autosave_name, controller_apis
@@ -186,10 +189,7 @@ def _as_an_input_record(attribute: AttrR[Any, Any], clock: str) -> None:
         record.TSEL = f"{clock}.TIME"
     record.DISP = 0
     datatype = attribute.datatype
-    ranged = isinstance(datatype, Float | Int)
-    if ranged and datatype.min is not None and datatype.max is not None:
-        record.LOPR = datatype.min
-        record.HOPR = datatype.max
+    _display_range(record, datatype)
     if isinstance(datatype, AlarmBool):
         record.ZSV, record.OSV = (SEVERITY_NAMES[s] for s in datatype.severities)
     elif isinstance(datatype, AlarmEnum) and len(datatype.members) <= len(
@@ -200,6 +200,27 @@ def _as_an_input_record(attribute: AttrR[Any, Any], clock: str) -> None:
         ):
             if severity:
                 setattr(record, field, SEVERITY_NAMES[severity])
+
+
+def _as_an_output_record(attribute: AttrW[Any, Any]) -> None:
+    """An output's display range from its datatype's range (FastCS makes it
+    DRVL/DRVH, the limits of what a put may ask for, and leaves LOPR/HOPR
+    to alarm limits our values do not have)."""
+    from epicsdbbuilder import LookupRecord
+
+    try:
+        record: Any = LookupRecord(ca_name(attribute))
+    except KeyError:
+        return
+    _display_range(record, attribute.datatype)
+
+
+def _display_range(record: Any, datatype: Any) -> None:
+    """LOPR/HOPR from the range of a number's datatype, if it has one."""
+    ranged = isinstance(datatype, Float | Int)
+    if ranged and datatype.min is not None and datatype.max is not None:
+        record.LOPR = datatype.min
+        record.HOPR = datatype.max
 
 
 def load_site_databases(databases: Iterable[SiteDatabase]) -> None:
