@@ -258,7 +258,14 @@ def attribute_for_coe(coe: CoePoint, *, read_only: bool = False) -> Attribute:
 
 def from_device(attr: AttrR[Any, Any], value: Any) -> Any:
     """A data-plane value in the form the attribute's datatype validates."""
-    datatype = attr.datatype
-    if isinstance(datatype, Enum) and not isinstance(value, enum.Enum):
-        return datatype.enum_cls(int(value))
+    enum_cls = enum_of(attr)
+    if enum_cls is not None and not isinstance(value, enum.Enum):
+        return enum_cls(int(value))
     return value
+
+
+def enum_of(attr: AttrR[Any, Any]) -> Any:
+    """The enum an attribute's values are members of (None: not an enum):
+    the only data-plane values `from_device` converts."""
+    datatype = attr.datatype
+    return datatype.enum_cls if isinstance(datatype, Enum) else None

@@ -25,12 +25,30 @@ from fastcs.datatypes import Float, Int
 from fastcs_ethercat.ioc.datatypes import severity_table
 
 
+class Channel:
+    """The status bits of one channel, each with its datatype's table."""
+
+    __slots__ = ("statuses",)
+
+    def __init__(self, statuses: tuple[AttrR[Any, Any], ...]) -> None:
+        self.statuses = tuple((s, severity_table(s.datatype)) for s in statuses)
+
+    def severity(self) -> int:
+        """The worst severity of the status bits now."""
+        worst = 0
+        for status, severity_of in self.statuses:
+            severity = severity_of(status.get())
+            if severity > worst:
+                worst = severity
+        return worst
+
+
 class ChannelAlarms:
     """Which values carry which status bits' severity."""
 
     def __init__(self) -> None:
-        self._statuses: dict[int, tuple[AttrR[Any, Any], ...]] = {}
-        """A value's id -> the status bits of its channel."""
+        self._channels: dict[int, Channel] = {}
+        """A value's id -> its channel."""
         self._values: dict[int, tuple[AttrR[Any, Any], ...]] = {}
         """A status bit's id -> the values of its channel."""
 
@@ -43,14 +61,19 @@ class ChannelAlarms:
             statuses = tuple(a for a in members if severity_table(a.datatype))
             values = tuple(a for a in members if _carries(a))
             if statuses and values:
+                channel = Channel(statuses)
                 for value in values:
-                    self._statuses[id(value)] = statuses
+                    self._channels[id(value)] = channel
                 for status in statuses:
                     self._values[id(status)] = values
 
+    def channel_of(self, value: AttrR[Any, Any]) -> Channel | None:
+        """The channel whose status bits `value` carries, None if none."""
+        return self._channels.get(id(value))
+
     def carries(self, attribute: AttrR[Any, Any]) -> bool:
         """Whether `attribute` is a value with status bits beside it."""
-        return id(attribute) in self._statuses
+        return id(attribute) in self._channels
 
     def values_of(self, status: AttrR[Any, Any]) -> tuple[AttrR[Any, Any], ...]:
         """The values that carry `status` (none if it is no status bit)."""
@@ -58,11 +81,8 @@ class ChannelAlarms:
 
     def severity(self, value: AttrR[Any, Any]) -> int:
         """The worst severity of the status bits beside `value` now."""
-        worst = 0
-        for status in self._statuses.get(id(value), ()):
-            severity_of = severity_table(status.datatype)
-            worst = max(worst, severity_of(status.get()))
-        return worst
+        channel = self._channels.get(id(value))
+        return 0 if channel is None else channel.severity()
 
 
 def _carries(attribute: AttrR[Any, Any]) -> bool:

@@ -112,6 +112,10 @@ class _Library:
         self.put = declare(
             "dbPut", ctypes.c_long, address, ctypes.c_short, buffer, ctypes.c_long
         )
+        # the hot path's put: no argtypes, so ctypes converts nothing; every
+        # argument is passed as the C object it is (`writer_of`)
+        self.put_field_as_is = lib["dbPutField"]
+        self.put_field_as_is.restype = ctypes.c_long
         self.get_field = declare(
             "dbGetField",
             ctypes.c_long,
@@ -190,16 +194,16 @@ says so); raises `DbAccessError` if EPICS refuses it."""
 class Record:
     """One record of the running database, by name."""
 
-    __slots__ = ("name", "value_field")
+    __slots__ = ("_locked", "_record", "name", "pointer", "value_field")
 
     def __init__(self, name: str) -> None:
         self.name = name
         self.value_field = address(name)
         """Its VAL (the field the record's name means)."""
-
-    @property
-    def pointer(self) -> int:
-        return int(self.value_field.precord or 0)
+        self.pointer = int(self.value_field.precord or 0)
+        """The record (`dbCommon *`), for the calls that take it."""
+        self._record = ctypes.c_void_p(self.pointer)
+        self._locked = _Locked(self.pointer)
 
     def writer(self, kind: str, length: int = 0) -> Writer:
         """A writer of values of `kind` into VAL (see `writer_of`)."""
@@ -214,18 +218,23 @@ class Record:
     def raise_alarm(self, severity: int, status: int, message: str = "") -> None:
         """Raise this alarm for the record's next processing (the highest
         severity raised before it wins). Call with the record locked."""
-        _library().set_severity(
-            ctypes.c_void_p(self.pointer),
-            ctypes.c_ushort(status),
-            ctypes.c_ushort(severity),
-            ctypes.c_char_p(b"%s" if message else None),
-            ctypes.c_char_p(message.encode(errors="replace")[:39]),
-        )
+        if message:
+            _library().set_severity(
+                self._record,
+                ctypes.c_ushort(status),
+                ctypes.c_ushort(severity),
+                _FORMAT,
+                ctypes.c_char_p(message.encode(errors="replace")[:39]),
+            )
+        else:
+            _library().set_severity(
+                self._record, ctypes.c_ushort(status), ctypes.c_ushort(severity), None
+            )
 
     def locked(self) -> _Locked:
         """`with record.locked():` the record's lock set held (EPICS locks
         are recursive: a put in the block takes it again)."""
-        return _Locked(self.pointer)
+        return self._locked
 
     def show_alarm(self, severity: int, status: int, message: str = "") -> None:
         """Make this alarm the record's current one without processing it:
@@ -258,6 +267,9 @@ class Record:
     def active(self) -> bool:
         """PACT: the record is being processed (an asynchronous put)."""
         return get_text(f"{self.name}.PACT") not in ("0", "")
+
+
+_FORMAT: Final = ctypes.c_char_p(b"%s")
 
 
 class _Locked:
@@ -316,10 +328,12 @@ def writer_of(name: str, field: DbAddr, kind: str, length: int = 0) -> Writer:
         ctype, dbr = SCALARS[kind]
         cell = ctype()
         reference = ctypes.byref(cell)
+        put_as_is = _library().put_field_as_is
+        request, one = ctypes.c_short(dbr), ctypes.c_long(1)
 
         def write_scalar(value: Any) -> None:
             cell.value = value
-            if put(where, dbr, reference, 1):
+            if put_as_is(where, request, reference, one):
                 raise DbAccessError(f"{name}: EPICS refused {value!r}")
 
         return write_scalar

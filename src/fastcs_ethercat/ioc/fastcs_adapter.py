@@ -220,12 +220,39 @@ class ValueRoute:
 
     def post(self, update: Update) -> None:
         """What `attribute.update(update)` will do: the value, then the record."""
-        attribute, value = self.attribute, update.value
+        if update.severity:
+            self.post_alarmed(
+                update.value, update.severity, update.status, update.message
+            )
+        else:
+            self.post_value(update.value)
+
+    def post_value(self, value: Any) -> None:
+        """`post` of a value without an alarm of its own (the hot path)."""
+        attribute = self.attribute
         attribute._value = value  # pyright: ignore[reportPrivateUsage]
+        if attribute._on_update_events:  # pyright: ignore[reportPrivateUsage]
+            self._set_events(value)
+        write = self.write
+        if write is not None:
+            convert = self.to_record
+            write(value if convert is None else convert(value))
+
+    def post_alarmed(
+        self, value: Any, severity: int, status: int, message: str = ""
+    ) -> None:
+        """`post` of a value with this alarm raised for its processing."""
+        attribute = self.attribute
+        attribute._value = value  # pyright: ignore[reportPrivateUsage]
+        if attribute._on_update_events:  # pyright: ignore[reportPrivateUsage]
+            self._set_events(value)
+        self.put(Update(value, 0.0, severity, status, message))
+
+    def _set_events(self, value: Any) -> None:
+        """Wake who waits for this value, as `update()` does."""
+        attribute = self.attribute
         events = attribute._on_update_events  # pyright: ignore[reportPrivateUsage]
-        if events:
-            attribute._on_update_events = {e for e in events if not e.set(value)}  # pyright: ignore[reportPrivateUsage]
-        self.put(update)
+        attribute._on_update_events = {e for e in events if not e.set(value)}  # pyright: ignore[reportPrivateUsage]
 
     def put(self, update: Update) -> None:
         """The record alone: `update`'s value, its severity raised for it."""

@@ -17,7 +17,7 @@ field's `AlarmInt`) and by its channel's status bits when they are in alarm
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Iterable
 from typing import Any, Final, NamedTuple
 
 from fastcs.attributes import AttrR
@@ -28,7 +28,7 @@ from fastcs_ethercat.ioc.alarms import AlarmState, Severity, state_alarm
 from fastcs_ethercat.ioc.channel_alarms import ChannelAlarms
 from fastcs_ethercat.ioc.datatypes import AlarmInt, severity_table
 from fastcs_ethercat.ioc.deadband import Deadbands
-from fastcs_ethercat.ioc.fastcs_adapter import Update, ValueRoute
+from fastcs_ethercat.ioc.fastcs_adapter import ValueRoute
 from fastcs_ethercat.ioc.read_clock import set_clock
 
 FREEZE_AFTER_ROUTES: Final = 100
@@ -45,11 +45,34 @@ class Published(NamedTuple):
     failures: list[Failure]
 
 
-_Route = tuple[ValueRoute, Callable[[Any], Any], Callable[[Any, Any], bool], float, Any]
-"""An attribute's route, its datatype's validate and equal, its deadband (0:
-none) and the severity table the IOC raises for its value (None: its record
-gives it, or it has none): looked up once, not per value (FastCS's
-`datatype` is a property)."""
+class _Route:
+    """What posting one attribute's values needs, looked up once (FastCS's
+    `datatype` is a property): its record's route, its datatype's validate
+    and equal, its deadband (0: none), the severity table the IOC raises for
+    its value (None: its record gives it, or it has none) and the channel
+    severity it was last posted with."""
+
+    __slots__ = (
+        "band", "carried", "carriers", "channel", "equal", "route", "severity_of",
+        "validate",
+    )  # fmt: skip
+
+    def __init__(
+        self, attribute: AttrR[Any, Any], band: float, channels: ChannelAlarms
+    ) -> None:
+        datatype = attribute.datatype
+        self.channel = channels.channel_of(attribute)
+        """The channel whose status bits this value carries (None: none)."""
+        self.carriers = channels.values_of(attribute)
+        """The values that carry this status bit (none if it is none)."""
+        self.route = ValueRoute(attribute)
+        self.validate = datatype.validate
+        self.equal = datatype.equal
+        self.band = band
+        self.severity_of = (
+            severity_table(datatype) if isinstance(datatype, AlarmInt) else None
+        )
+        self.carried = 0
 
 
 class _Batch:
@@ -86,8 +109,6 @@ class Publisher:
         self._routes: dict[int, _Route] = {}
         self.channels = ChannelAlarms()
         """Which values carry their channel's status bits' alarm."""
-        self._carried: dict[int, int] = {}
-        """A channel value's id -> the channel severity it was last posted with."""
         self._prepared: dict[int, _Route] = {}
         """Routes made ahead (`prepare`), taken at each attribute's first value."""
         self._first: set[int] = set()
@@ -137,23 +158,31 @@ class Publisher:
         if not self.started:
             return await self._update_each(values)
         batch = _Batch(stamp)
-        channels = self.channels
-        carrying: list[tuple[AttrR[Any, Any], Any]] = []
+        carrying: list[tuple[_Route, AttrR[Any, Any], Any]] = []
         touched: dict[int, AttrR[Any, Any]] = {}
+        routes = self._routes
         for attribute, value in values:
-            if channels.carries(attribute):
-                carrying.append((attribute, value))
-            elif self._post(batch, attribute, value, None):
-                for carrier in channels.values_of(attribute):
+            entry = routes.get(id(attribute))
+            if entry is None:
+                entry = self._first_route(batch, attribute)
+            if entry.channel is not None:
+                carrying.append((entry, attribute, value))
+            elif self._post(batch, entry, attribute, value, None):
+                for carrier in entry.carriers:
                     touched[id(carrier)] = carrier
-        for attribute, value in carrying:
+        worst: dict[int, int] = {}  # a channel's severity, once per batch
+        for entry, attribute, value in carrying:
             touched.pop(id(attribute), None)
-            self._post(batch, attribute, value, channels.severity(attribute))
+            channel: Any = entry.channel
+            severity = worst.get(id(channel))
+            if severity is None:
+                severity = worst[id(channel)] = channel.severity()
+            self._post(batch, entry, attribute, value, severity)
         for attribute in touched.values():  # its value as it was, its alarm not
-            if id(attribute) in self._routes:
-                self._post(
-                    batch, attribute, attribute.get(), channels.severity(attribute)
-                )
+            entry = routes.get(id(attribute))
+            if entry is not None and entry.channel is not None:
+                severity = entry.channel.severity()
+                self._post(batch, entry, attribute, attribute.get(), severity)
         if batch.made >= FREEZE_AFTER_ROUTES:
             freeze_new()  # routes live as long as the IOC
         self.posted += batch.posted
@@ -166,14 +195,28 @@ class Publisher:
         if not self.channels.carries(attribute):
             return own
         carried = self.channels.severity(attribute)
-        self._carried[id(attribute)] = carried
+        route = self._routes.get(id(attribute))
+        if route is not None:
+            route.carried = carried
         if carried > own.severity:
             return AlarmState(Severity(carried), alarms.VALUE_STATUS)
         return own
 
+    def _first_route(self, batch: _Batch, attribute: AttrR[Any, Any]) -> _Route:
+        """The attribute's route at its first value: prepared, or made now;
+        its first value is posted even if equal (`_first`)."""
+        entry = self._prepared.pop(id(attribute), None)
+        if entry is None:
+            entry = self._route(attribute)
+            batch.made += 1
+        self._routes[id(attribute)] = entry
+        self._first.add(id(attribute))
+        return entry
+
     def _post(
         self,
         batch: _Batch,
+        entry: _Route,
         attribute: AttrR[Any, Any],
         value: Any,
         carried: int | None,
@@ -181,40 +224,31 @@ class Publisher:
         """Post `value` if new (or its channel's alarm, `carried`, is);
         whether it was posted."""
         try:
-            routes = self._routes
-            entry = routes.get(id(attribute))
-            unchanged_alarm = carried is None or carried == self._carried.get(
-                id(attribute), 0
-            )
-            if entry is None or id(attribute) in self._first:  # posted even if equal
+            validated = entry.validate(value)
+            if self._first and id(attribute) in self._first:  # posted even if equal
                 self._first.discard(id(attribute))
-                validated = attribute.datatype.validate(value)
-                entry = entry or self._prepared.pop(id(attribute), None)
-                if entry is None:
-                    entry = self._route(attribute)
-                    batch.made += 1
-                routes[id(attribute)] = entry
-                route, _, _, _, severity_of = entry
             else:
-                route, validate, equal, band, severity_of = entry
-                validated = validate(value)
+                unchanged_alarm = carried is None or carried == entry.carried
+                band = entry.band
                 if band:
                     if abs(validated - attribute.get()) <= band and unchanged_alarm:
                         self.within_deadband += 1
                         return False
-                elif unchanged_alarm and equal(attribute.get(), validated):
+                elif unchanged_alarm and entry.equal(attribute.get(), validated):
                     return False
+            severity_of = entry.severity_of
             severity = severity_of(validated) if severity_of is not None else 0
             if carried is not None:
-                self._carried[id(attribute)] = carried
-                severity = max(severity, carried)
+                entry.carried = carried
+                if carried > severity:
+                    severity = carried
             if not batch.clock_set:
                 set_clock(batch.stamp)
                 batch.clock_set = True
             if severity:  # a state, its own or its channel's: its alarm goes with it
-                route.post(Update(validated, batch.stamp, *state_alarm(severity)))
+                entry.route.post_alarmed(validated, *state_alarm(severity))
             else:
-                route.post(Update(validated, batch.stamp))
+                entry.route.post_value(validated)
         except Exception as error:
             batch.failures.append((attribute, error))
             return False
@@ -222,15 +256,7 @@ class Publisher:
         return True
 
     def _route(self, attribute: AttrR[Any, Any]) -> _Route:
-        """What posting the attribute's values needs, looked up once."""
-        datatype = attribute.datatype
-        return (
-            ValueRoute(attribute),
-            datatype.validate,
-            datatype.equal,
-            self.deadbands.of_attribute(attribute),
-            severity_table(datatype) if isinstance(datatype, AlarmInt) else None,
-        )
+        return _Route(attribute, self.deadbands.of_attribute(attribute), self.channels)
 
     async def _update_each(
         self, values: Iterable[tuple[AttrR[Any, Any], Any]]

@@ -64,6 +64,7 @@ from fastcs_ethercat.ioc.attributes import (
     PointIO,
     attribute_for_point,
     engineering_value,
+    enum_of,
     from_device,
 )
 from fastcs_ethercat.ioc.connection import Connection
@@ -414,6 +415,7 @@ class MasterController(Controller):
     async def _post_batches(self, batches: asyncio.Queue[Batch]) -> None:
         """Each cycle's changes posted together (one lock for its CA records)."""
         attributes, health = self.attributes_by_key, self.health
+        enums: dict[Any, Any] = {}  # an attribute's enum class, None: no enum
         while True:
             changes, stamp = await batches.get()
             values: list[tuple[AttrR[Any, Any], Any]] = []
@@ -421,8 +423,12 @@ class MasterController(Controller):
                 attr = attributes.get(point.key)
                 if attr is None:
                     continue
+                if point.key not in enums:
+                    enums[point.key] = enum_of(attr)
                 try:
-                    values.append((attr, from_device(attr, value)))
+                    if enums[point.key] is not None:
+                        value = from_device(attr, value)
+                    values.append((attr, value))
                 except Exception as error:  # one value must not stop the others
                     self._failed(point.symbol, error)
             for attr, error in (await health.post_batch(values, stamp)).failures:
