@@ -43,8 +43,9 @@ from __future__ import annotations
 import asyncio
 import os
 import re
+import tempfile
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
 
@@ -102,6 +103,8 @@ class DatabaseTransport(EpicsCATransport):
     """Serve Channel Access (RSRV)."""
     pva: bool = True
     """Serve PV Access (QSRV)."""
+    _fields: RecordFields = field(default_factory=lambda: RecordFields())
+    """The fields `connect` gives FastCS's records, loaded after them."""
 
     def connect(
         self, controller_apis: list[ControllerAPI], loop: asyncio.AbstractEventLoop
@@ -110,13 +113,14 @@ class DatabaseTransport(EpicsCATransport):
         if self.pva:
             add_pvi_groups(controller_apis)
         clock = make_clock(controller_apis[0].path[0]).name if controller_apis else ""
+        fields = self._fields = RecordFields()
         for api in controller_apis:
             for controller_api in api.walk_api():
                 for attribute in controller_api.attributes.values():
                     if isinstance(attribute, AttrR) and attribute.enabled:
-                        _as_an_input_record(attribute, clock)
+                        _as_an_input_record(attribute, clock, fields)
                     if isinstance(attribute, AttrW) and attribute.enabled:
-                        _as_an_output_record(attribute)
+                        _as_an_output_record(attribute, fields)
         if self.autosave_dir is not None:
             keep_operator_settings(
                 self.autosave_dir, self.autosave_name, controller_apis
@@ -133,7 +137,9 @@ class DatabaseTransport(EpicsCATransport):
         _initialised = done = loop.create_future()
         try:
             dispatcher = AsyncioDispatcher(loop)
+            self._fields.load_defaults()
             builder.LoadDatabase()
+            self._fields.load_changes()
             load_site_databases(self.site_databases)
             if not self.ca:
                 os.environ[IGNORE_SERVERS] = "rsrv"
@@ -167,7 +173,9 @@ def database_transport(
     )
 
 
-def _as_an_input_record(attribute: AttrR[Any, Any], clock: str) -> None:
+def _as_an_input_record(
+    attribute: AttrR[Any, Any], clock: str, fields: RecordFields
+) -> None:
     """Give the in record of `attribute` the fields above (before the
     database is loaded)."""
     from epicsdbbuilder import LookupRecord
@@ -180,47 +188,113 @@ def _as_an_input_record(attribute: AttrR[Any, Any], clock: str) -> None:
     except KeyError:  # not made (a name too long for EPICS: FastCS said so)
         return
     follow_updates(attribute)
-    record.DTYP = "Soft Channel"
-    record.SCAN = "Passive"
+    # fields back to EPICS's defaults (softioc's removed): a deletion is free,
+    # and autosave (which restores MDEL) sets its own after these
     record.address = None  # INP: none, the IOC puts the value
     record.PINI = None
     record.MDEL = None  # EPICS's default (0: every change), not softioc's -1
+    record.DISP = None  # EPICS's default (0: puts to fields allowed)
+    changed = {"DTYP": "Soft Channel", "SCAN": "Passive"}
     if clock:
-        record.TSEL = f"{clock}.TIME"
-    record.DISP = 0
-    datatype = attribute.datatype
-    _display_range(record, datatype)
+        changed["TSEL"] = f"{clock}.TIME"
+    changed.update(_display_range(attribute.datatype))
+    record_type = type(record).__name__
+    fields.change(record_type, name, changed)
+    severities = _state_severities(attribute.datatype)
+    if severities:  # defaults: FastCS's text and autosave's restore come after
+        fields.default(record_type, name, severities)
+
+
+def _state_severities(datatype: Any) -> dict[str, str]:
+    """A bi's ZSV/OSV or an mbbi's state severities from the datatype's
+    table (the record's alarm of its state, an operator may change it)."""
     if isinstance(datatype, AlarmBool):
-        record.ZSV, record.OSV = (SEVERITY_NAMES[s] for s in datatype.severities)
-    elif isinstance(datatype, AlarmEnum) and len(datatype.members) <= len(
+        zero, one = datatype.severities
+        return {"ZSV": SEVERITY_NAMES[zero], "OSV": SEVERITY_NAMES[one]}
+    if isinstance(datatype, AlarmEnum) and len(datatype.members) <= len(
         MBB_SEVERITY_FIELDS
     ):
-        for field, severity in zip(
-            MBB_SEVERITY_FIELDS, datatype.severities, strict=False
-        ):
-            if severity:
-                setattr(record, field, SEVERITY_NAMES[severity])
+        return {
+            field_name: SEVERITY_NAMES[severity]
+            for field_name, severity in zip(
+                MBB_SEVERITY_FIELDS, datatype.severities, strict=False
+            )
+            if severity
+        }
+    return {}
 
 
-def _as_an_output_record(attribute: AttrW[Any, Any]) -> None:
+def _as_an_output_record(attribute: AttrW[Any, Any], fields: RecordFields) -> None:
     """An output's display range from its datatype's range (FastCS makes it
     DRVL/DRVH, the limits of what a put may ask for, and leaves LOPR/HOPR
     to alarm limits our values do not have)."""
     from epicsdbbuilder import LookupRecord
 
+    name = ca_name(attribute)
     try:
-        record: Any = LookupRecord(ca_name(attribute))
+        record: Any = LookupRecord(name)
     except KeyError:
         return
-    _display_range(record, attribute.datatype)
+    changed = _display_range(attribute.datatype)
+    if changed:
+        fields.change(type(record).__name__, name, changed)
 
 
-def _display_range(record: Any, datatype: Any) -> None:
+def _display_range(datatype: Any) -> dict[str, str]:
     """LOPR/HOPR from the range of a number's datatype, if it has one."""
     ranged = isinstance(datatype, Float | Int)
     if ranged and datatype.min is not None and datatype.max is not None:
-        record.LOPR = datatype.min
-        record.HOPR = datatype.max
+        return {"LOPR": repr(datatype.min), "HOPR": repr(datatype.max)}
+    return {}
+
+
+class RecordFields:
+    """Fields of the records FastCS makes, as database files EPICS parses
+    (`record(TYPE, "NAME") { field(...) }` of a record already loaded
+    changes its fields), not through epicsdbbuilder's check of each field,
+    which costs ~0.1 ms a field: defaults loaded before FastCS's database
+    (its text and autosave's restore, written into it, come after), and
+    changes of FastCS's own fields loaded after it."""
+
+    Records = list[tuple[str, str, dict[str, str]]]
+
+    def __init__(self) -> None:
+        self._defaults: RecordFields.Records = []
+        self._changes: RecordFields.Records = []
+
+    def default(self, record_type: str, name: str, fields: dict[str, str]) -> None:
+        self._defaults.append((record_type, name, fields))
+
+    def change(self, record_type: str, name: str, fields: dict[str, str]) -> None:
+        self._changes.append((record_type, name, fields))
+
+    def load_defaults(self) -> None:
+        """Before FastCS's database."""
+        _load(self._defaults, "defaults.db")
+
+    def load_changes(self) -> None:
+        """After FastCS's database, before iocInit."""
+        _load(self._changes, "changes.db")
+
+
+def _load(records: RecordFields.Records, name: str) -> None:
+    if not records:
+        return
+    from softioc import softioc
+
+    lines: list[str] = []
+    for record_type, record, fields in records:
+        lines.append(f'record({record_type}, "{_quoted(record)}") {{')
+        lines += [f'    field({k}, "{_quoted(v)}")' for k, v in fields.items()]
+        lines.append("}")
+    with tempfile.TemporaryDirectory(prefix="fastcs-ethercat-") as folder:
+        path = Path(folder) / name
+        path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+        softioc.dbLoadDatabase(str(path), None, None)
+
+
+def _quoted(text: str) -> str:
+    return text.replace("\\", "\\\\").replace('"', '\\"')
 
 
 def load_site_databases(databases: Iterable[SiteDatabase]) -> None:
