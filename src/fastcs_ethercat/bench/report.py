@@ -24,8 +24,9 @@ SCAN_KEYS = (
     "cpu_changing_pct",
     "updates_per_s",
 )
-START_TARGET_S = 1.5
-"""IOC start, 104 terminals, launch to every PV connectable (issue 16)."""
+START_TARGET_S = 2.5
+"""IOC start, 104 terminals, launch to every PV connectable: a start of up
+to 2.5 s is fine once every value is processed by record support (issue 24)."""
 RSS_TARGETS_MB = {"20": 150.0, "104": 200.0}
 CPU_CHANGING_TARGET_PCT = 20.0
 """~1 000 symbols changing every cycle, one client monitoring all (issue 16)."""
