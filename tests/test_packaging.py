@@ -77,10 +77,3 @@ def test_wheel_carries_the_data_and_runs_outside_the_checkout(tmp_path: Path) ->
     assert version.stdout.strip() == f"fastcs-ethercat {RELEASE}"
     assert "fastcs_ethercat/_version.py" in names
     assert where.stdout.split() == [str(shipped), "True"]
-
-
-def test_readme_test_command_is_what_ci_runs() -> None:
-    readme = (REPO_ROOT / "README.md").read_text()
-    ci_lines = (REPO_ROOT / ".ci" / "run").read_text().splitlines()
-    (command,) = [line for line in ci_lines if line.startswith("python3 -m venv")]
-    assert command in readme

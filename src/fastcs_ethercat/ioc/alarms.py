@@ -16,6 +16,7 @@ transports serve; before that, whatever is not built yet is skipped.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from enum import IntEnum
 from typing import Any, Final
@@ -104,3 +105,9 @@ def publish_alarm(
     return records_of(attribute).publish_alarm(
         int(state.severity), int(state.status), message, parts
     )
+
+
+def hold_setpoint(attribute: Attribute[Any, Any]) -> Callable[[], None]:
+    """Lock `attribute`'s setpoint record (EPICS's `dbScanLock`: nothing
+    else processes it meanwhile); the call that unlocks it."""
+    return records_of(attribute).hold_setpoint()

@@ -236,6 +236,19 @@ class Record:
         are recursive: a put in the block takes it again)."""
         return self._locked
 
+    def hold(self) -> Callable[[], None]:
+        """Lock the record's lock set now; the call that unlocks it (once)."""
+        lib = _library()
+        lib.lock(self.pointer)
+        held = [True]
+
+        def release() -> None:
+            if held:
+                held.clear()
+                lib.unlock(self.pointer)
+
+        return release
+
     def show_alarm(self, severity: int, status: int, message: str = "") -> None:
         """Make this alarm the record's current one without processing it:
         raised, made current (`recGblResetAlarms`, which posts SEVR/STAT)

@@ -170,12 +170,23 @@ class AttributeRecords:
             reached += 1
         return reached
 
+    def hold_setpoint(self) -> Callable[[], None]:
+        """Lock the out record (if any) until the call returned is made."""
+        record = self.setpoint
+        if record is None:
+            return _nothing
+        return record.hold()
+
     def show_setpoint(self, value: Any) -> None:
         """Show `value` on the out record without processing it."""
         if self.setpoint is not None:
             convert = self.to_record
             shown = convert(value) if convert is not None else value
             self.setpoint.show_value(self.kind, shown, self.length)
+
+
+def _nothing() -> None:
+    """Nothing to undo."""
 
 
 _records: dict[int, AttributeRecords] = {}

@@ -219,9 +219,21 @@ class Health:
     def show_setpoint_soon(self, attribute: Attribute[Any, Any]) -> None:
         """`show_setpoint` once the put under way has been handled: FastCS's
         put handler stages its own verdict on the record (MAJOR/WRITE or no
-        alarm) after the write path returns, and ours goes after it (an
-        INVALID raised while the put completes is the one the client sees)."""
-        asyncio.get_running_loop().call_soon(self.show_setpoint, attribute)
+        alarm) after the write path returns, then asks EPICS to complete
+        the put. The setpoint record is held locked from now until ours is
+        raised after FastCS's, so the completion (an EPICS callback thread
+        locks the record to process it) always shows the IOC's verdict: the
+        client of `caput -c` sees INVALID/WRITE or INVALID/TIMEOUT, not
+        FastCS's MAJOR."""
+        release = alarms.hold_setpoint(attribute)
+
+        def show() -> None:
+            try:
+                self.show_setpoint(attribute)
+            finally:
+                release()
+
+        asyncio.get_running_loop().call_soon(show)
 
     async def _drop(self, attribute: Attribute[Any, Any], gone: Iterable[str]) -> None:
         key = id(attribute)
