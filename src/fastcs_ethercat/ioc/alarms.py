@@ -25,7 +25,6 @@ from fastcs.attributes import Attribute
 
 from fastcs_ethercat.ioc.datatypes import severity_table
 from fastcs_ethercat.ioc.fastcs_adapter import Parts, records_of
-from fastcs_ethercat.ioc.read_clock import set_clock
 
 
 class Severity(IntEnum):
@@ -100,7 +99,6 @@ def publish_alarm(
     """Publish `state` on the records of `attribute` (of `parts`: its
     readback, its setpoint or both). The record's alarm message (AMSG, the
     message PVA clients see) is `STATUS: text`, so they see the status too."""
-    set_clock()
     message = f"{state.status.name}: {state.message}" if state.message else ""
     return records_of(attribute).publish_alarm(
         int(state.severity), int(state.status), message, parts

@@ -213,8 +213,8 @@ def _record(name: str) -> dbaccess.Record | None:
 class ValueRoute:
     """Posts `Update`s of one attribute to its in record, once the database
     serves: one put, which EPICS processes (alarm limits, deadbands, links,
-    CA and PVA monitors). The time is the clock's (`ioc.read_clock`), which
-    the caller set; an update's severity is raised for that processing."""
+    CA and PVA monitors), its time the processing's; an update's severity is
+    raised for that processing."""
 
     __slots__ = ("attribute", "records", "to_record", "write")
 
@@ -287,8 +287,6 @@ def follow_updates(attribute: AttrR[Any, Any]) -> None:
     record too (a FastCS on-update callback), at the time it is given: the
     IOC posts its values through `ValueRoute`, but an attribute may also be
     updated the FastCS way (a put to an output without IO, say)."""
-    from fastcs_ethercat.ioc.read_clock import set_clock
-
     route: list[ValueRoute] = []
 
     async def to_record(value: Any) -> None:
@@ -296,7 +294,6 @@ def follow_updates(attribute: AttrR[Any, Any]) -> None:
             return  # before iocInit: posted when the database serves
         if not route:
             route.append(ValueRoute(attribute))
-        set_clock()
         route[0].put(Update(value, 0.0))
 
     attribute.add_on_update_callback(to_record)

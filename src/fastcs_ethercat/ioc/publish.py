@@ -2,10 +2,11 @@
 
 The one path of every value the IOC serves: a poll cycle's changed values,
 and the IOC's own (diagnostics, statistics, CoE reads), each posted with
-the time it was read. The clock (`ioc.read_clock`) is set to that time,
-then each value is put into its record (`fastcs_adapter.ValueRoute`), which
-EPICS processes: its alarm limits, deadbands and links, the monitors of CA
-and PVA clients. Only values that changed are posted.
+the time it was read. Each value is put into its record
+(`fastcs_adapter.ValueRoute`), which EPICS processes at once: its alarm
+limits, deadbands and links, the monitors of CA and PVA clients, its time
+the time of that processing (a few milliseconds after the read). Only
+values that changed are posted.
 
 Alarms are not sticky here either: a published value carries its own alarm,
 the one record support gives it (its limits, a bi's OSV, UDF for NaN),
@@ -29,7 +30,6 @@ from fastcs_ethercat.ioc.channel_alarms import ChannelAlarms
 from fastcs_ethercat.ioc.datatypes import AlarmInt, severity_table
 from fastcs_ethercat.ioc.deadband import Deadbands
 from fastcs_ethercat.ioc.fastcs_adapter import ValueRoute
-from fastcs_ethercat.ioc.read_clock import set_clock
 
 FREEZE_AFTER_ROUTES: Final = 100
 """A batch that made this many routes (a first cycle) freezes the heap again."""
@@ -80,8 +80,6 @@ class _Batch:
 
     def __init__(self, stamp: float) -> None:
         self.stamp = stamp
-        self.clock_set = False
-        """The clock holds `stamp` (set before the first value posted)."""
         self.posted = 0
         self.made = 0
         """Routes made (not prepared ahead)."""
@@ -242,9 +240,6 @@ class Publisher:
                 entry.carried = carried
                 if carried > severity:
                     severity = carried
-            if not batch.clock_set:
-                set_clock(batch.stamp)
-                batch.clock_set = True
             if severity:  # a state, its own or its channel's: its alarm goes with it
                 entry.route.post_alarmed(validated, *state_alarm(severity))
             else:
