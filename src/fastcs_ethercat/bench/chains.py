@@ -57,10 +57,10 @@ def scan_slaves(
     """Enough EL3104s for `symbols` selected symbols, behind couplers.
 
     Unchanging inputs are constant; changing ones count up every task cycle
-    (run the task at the poll period so every poll sees a new value). Noisy
-    ones are constant but for each channel's value, which wanders a few
-    counts (`NOISE_AMPLITUDE`) about a level from cycle to cycle, as an
-    analog input's low bits do.
+    (run the task one cycle per poll, `--cycle-per-poll`, so every poll sees a
+    new value, bits too). Noisy ones are constant but for each channel's
+    value, which wanders a few counts (`NOISE_AMPLITUDE`) about a level from
+    cycle to cycle, as an analog input's low bits do.
     """
     signal = (
         {"kind": "counter", "start": 0, "step": 1}

@@ -69,6 +69,7 @@ async def running(
     *,
     poll_rate_hz: float = 10.0,
     task_cycle_ms: float = 10.0,
+    cycle_per_poll: bool = False,
     terminals: Path | None = None,
     timed_start: bool = False,
     deadbands: dict[str, float] | None = None,
@@ -89,7 +90,8 @@ async def running(
         deadbands=deadbands,
     )
     timeout = context.plan.start_timeout_s
-    with SimProcess(chain=chain, terminals=terminals) as sim:
+    extra_args = ["--cycle-per-poll"] if cycle_per_poll else []
+    with SimProcess(chain=chain, terminals=terminals, extra_args=extra_args) as sim:
         listing = asyncio.to_thread(list_pvs, config, sim.pyads_ip, sim.net_id, timeout)
         with IocProcess(config, sim.pyads_ip, sim.net_id) as ioc:
             if timed_start:  # nothing else may load the machine while it starts

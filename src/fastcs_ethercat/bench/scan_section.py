@@ -58,11 +58,14 @@ async def scan(context: BenchContext, symbols: int) -> dict[str, Any]:
         result["requests_per_cycle"] = round(up.sim.counters()["total"] / cycles, 2)
         result["symbols"] = len(up.symbol_pvs)
         result["rss_mb"] = round(peak_rss_mb(up.ioc.pid), 1)
-    # The task cycle is the poll period: each poll sees new values, bits too.
+    # One task cycle per poll: each poll sees new values, bits too (on a clock
+    # a poll landing on a tick sees two cycles or none, and bits read the same).
     slaves = scan_slaves(symbols, changing=True)
     cycle_ms = 1000.0 / RATE_HZ
     name = f"scan-{symbols}-changing"
-    async with running(context, name, slaves, task_cycle_ms=cycle_ms) as up:
+    async with running(
+        context, name, slaves, task_cycle_ms=cycle_ms, cycle_per_poll=True
+    ) as up:
         await _polling(up.sim)
         no_client = await _cpu_median(up, plan.runs, plan.window_s)
         result["cpu_changing_no_client_pct"] = no_client

@@ -85,6 +85,16 @@ def sim_command(
             "--cycle-ms", metavar="MS", help="Task cycle in ms (default: the chain's)."
         ),
     ] = None,
+    cycle_per_poll: Annotated[
+        bool,
+        typer.Option(
+            "--cycle-per-poll",
+            help="Advance the task one cycle per client poll (the first request "
+            "3/4 of a cycle after the last advance), not by the clock: a client "
+            "polling once a cycle sees every value change at every poll "
+            "(benchmarks).",
+        ),
+    ] = False,
     log_level: LogLevelOption = None,
     exit_with_stdin: Annotated[
         bool,
@@ -112,8 +122,11 @@ def sim_command(
     from fastcs_ethercat.twincat.resolve import load_revisions
     from fastcs_ethercat.twincat.target import SimTarget
 
+    spec = load_chain(chain)
+    if cycle_ms is not None:
+        spec.system.task_cycle_ms = cycle_ms
     target = SimTarget.from_chain(
-        load_chain(chain),
+        spec,
         terminals,
         seed=seed,
         revisions=load_revisions(revisions) if revisions else None,
@@ -125,7 +138,7 @@ def sim_command(
         port=port,
         udp_port=udp_port,
         control_port=control_port,
-        cycle_seconds=None if cycle_ms is None else cycle_ms / 1000,
+        cycle_per_poll=cycle_per_poll,
     )
     try:
         asyncio.run(serve(target, config, exit_with_stdin=exit_with_stdin))

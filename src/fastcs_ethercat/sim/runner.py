@@ -54,15 +54,19 @@ class RunnableTarget(SimTargetLike, ControllableTarget, Protocol):
 
 @dataclass(frozen=True)
 class SimulatorConfig:
-    """Where to listen and how fast the task cycle runs. Port 0 = any free port;
-    `udp_port` / `control_port` None = that service is off; `cycle_seconds`
-    None = the model's own task cycle."""
+    """Where to listen and how the task cycle runs. Port 0 = any free port;
+    `udp_port` / `control_port` None = that service is off. `cycle_per_poll`:
+    the task advances one cycle at the first request at least 3/4 of a cycle
+    after its last advance, not by the clock, so a client polling once a cycle
+    sees exactly one new cycle at every poll whatever the phase between the
+    two (benchmarks: on a clock, a poll landing on a tick sees two cycles or
+    none, and a bit that toggles every cycle reads the same)."""
 
     host: str = LOOPBACK
     port: int = ADS_TCP_PORT
     udp_port: int | None = ADS_UDP_PORT
     control_port: int | None = None
-    cycle_seconds: float | None = None
+    cycle_per_poll: bool = False
 
 
 def ready_line(endpoints: Endpoints) -> str:
@@ -96,6 +100,8 @@ class Simulator:
         self.http: ControlHttpServer | None = None
         self._control: SimControl | None = None
         self._ticker: asyncio.Task[None] | None = None
+        self._paced_clock = 0.0
+        self._last_advance = 0.0
 
     @property
     def control(self) -> SimControl:
@@ -119,7 +125,24 @@ class Simulator:
         except BaseException:
             await self.stop()
             raise
+        if config.cycle_per_poll:
+            self._paced_clock = self._last_advance = time.monotonic()
+            self.target.tick(self._paced_clock)
+            self.server.on_request = self._advance_if_polled
         self._ticker = loop.create_task(self._tick_forever(), name="sim-task-cycle")
+
+    @property
+    def period(self) -> float:
+        """The task cycle, in seconds."""
+        return self.target.cycle_s or DEFAULT_CYCLE_SECONDS
+
+    def _advance_if_polled(self) -> None:
+        """`cycle_per_poll`: one cycle on the first request of a new poll."""
+        now = time.monotonic()
+        if now - self._last_advance >= 0.75 * self.period:
+            self._last_advance = now
+            self._paced_clock += self.period
+            self.target.tick(self._paced_clock)
 
     async def stop(self) -> None:
         """Close every socket and stop the task cycle (idempotent)."""
@@ -151,13 +174,12 @@ class Simulator:
     async def _tick_forever(self) -> None:
         """The task cycle: move the model, then push due notifications."""
         loop = asyncio.get_running_loop()
-        period = (
-            self.config.cycle_seconds or self.target.cycle_s or DEFAULT_CYCLE_SECONDS
-        )
+        period = self.period
         deadline = loop.time()
         while True:
             try:
-                self.target.tick(time.monotonic())
+                if not self.config.cycle_per_poll:
+                    self.target.tick(time.monotonic())
                 now_ns = time.monotonic_ns()
                 self.server.tick(now_ns, time.time_ns(), now_ns + int(period * 1e9))
             except Exception:

@@ -205,6 +205,8 @@ class AmsServer:
         self._reopen_task: asyncio.Task[None] | None = None
         self._refusing = False
         self.forced_error: tuple[int, int | None] | None = None
+        self.on_request: Callable[[], object] | None = None
+        """Called before each request is served (the runner's paced task)."""
 
     # -- life cycle --------------------------------------------------------------
 
@@ -244,6 +246,8 @@ class AmsServer:
     ) -> AmsPacket | None:
         """The answer to one packet, or None when it needs none."""
         self.counters.count_request(packet)
+        if self.on_request is not None:
+            self.on_request()
         if packet.is_response or packet.command == AmsCommand.DEVICE_NOTIFICATION:
             return None
         if packet.target.netid not in self._net_ids:
