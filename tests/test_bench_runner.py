@@ -6,6 +6,9 @@ from __future__ import annotations
 
 import importlib.util
 import json
+import os
+import shutil
+import subprocess
 from pathlib import Path
 from typing import Any
 
@@ -22,6 +25,7 @@ from fastcs_ethercat.bench.chains import (
 )
 from fastcs_ethercat.bench.context import BenchContext, BenchPlan
 from fastcs_ethercat.bench.esi_sections import default_extra_esi, esi_full_parse
+from fastcs_ethercat.bench.repeater import RUN_TOKEN, stop_repeaters_of_run
 from fastcs_ethercat.bench.report import (
     REQUIRED_KEYS,
     fault_lines,
@@ -217,3 +221,25 @@ def test_fault_timings_are_judged_against_their_targets() -> None:
     assert fault_lines({"error": "TimeoutError: no"}) == [
         "faults: ERROR TimeoutError: no"
     ]
+
+
+@pytest.mark.e2e
+def test_the_bench_stops_the_carepeaters_of_its_run_only(tmp_path: Path) -> None:
+    """A caRepeater outlives the client that spawned it (its parent becomes
+    init); the bench finds its own by the run's token in their environment."""
+    stand_in = tmp_path / "caRepeater"  # a process named as the real one
+    sleep = shutil.which("sleep")
+    assert sleep is not None
+    shutil.copy(sleep, stand_in)
+    ours, theirs = (
+        subprocess.Popen([stand_in, "60"], env={**os.environ, RUN_TOKEN: token})
+        for token in ("ours", "theirs")
+    )
+    try:
+        assert stop_repeaters_of_run("ours") == [ours.pid]
+        assert ours.wait(timeout=5) != 0  # terminated
+        assert theirs.poll() is None
+    finally:
+        for process in (ours, theirs):
+            process.kill()
+            process.wait()

@@ -1,38 +1,51 @@
-"""caRepeater: the CA client library starts one if none runs; stop ours."""
+"""caRepeater: the CA client library starts one if none runs, and it outlives
+the client that started it (its parent becomes init). The bench marks its
+run's environment with a token every child inherits, the caRepeater too, and
+stops the caRepeaters that carry it."""
 
 from __future__ import annotations
 
 import os
+import secrets
 import signal
 from pathlib import Path
+from typing import Final
+
+RUN_TOKEN: Final = "FASTCS_ETHERCAT_BENCH_RUN"
+"""The environment variable that marks the processes of one bench run."""
 
 
-def _name_and_parent(pid: int) -> tuple[str, int] | None:
+def mark_run() -> str:
+    """Put a fresh token in this process's environment (children inherit it)."""
+    token = secrets.token_hex(8)
+    os.environ[RUN_TOKEN] = token
+    return token
+
+
+def _is_repeater_of(pid: int, marker: bytes) -> bool:
     try:
-        text = Path(f"/proc/{pid}/stat").read_text()
-    except OSError:
-        return None
-    name = text[text.index("(") + 1 : text.rindex(")")]
-    parent = int(text.rsplit(")", 1)[1].split()[1])
-    return name, parent
+        name = Path(f"/proc/{pid}/comm").read_text().strip()
+        if name != "caRepeater":
+            return False
+        return marker in Path(f"/proc/{pid}/environ").read_bytes().split(b"\0")
+    except OSError:  # gone, or not ours to read
+        return False
 
 
-def repeaters_of(parent: int) -> list[int]:
-    """PIDs of caRepeater processes whose parent is `parent`."""
-    found = []
-    for entry in Path("/proc").iterdir():
-        if not entry.name.isdecimal():
-            continue
-        info = _name_and_parent(int(entry.name))
-        if info is not None and info == ("caRepeater", parent):
-            found.append(int(entry.name))
-    return found
+def repeaters_of_run(token: str) -> list[int]:
+    """PIDs of the caRepeaters whose environment carries the run's token."""
+    marker = f"{RUN_TOKEN}={token}".encode()
+    return [
+        int(entry.name)
+        for entry in Path("/proc").iterdir()
+        if entry.name.isdecimal() and _is_repeater_of(int(entry.name), marker)
+    ]
 
 
-def stop_own_repeaters() -> list[int]:
-    """SIGTERM every caRepeater this process started; return their PIDs."""
+def stop_repeaters_of_run(token: str) -> list[int]:
+    """SIGTERM every caRepeater of the run; return their PIDs."""
     stopped = []
-    for pid in repeaters_of(os.getpid()):
+    for pid in repeaters_of_run(token):
         try:
             os.kill(pid, signal.SIGTERM)
             stopped.append(pid)

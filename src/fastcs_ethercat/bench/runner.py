@@ -24,7 +24,7 @@ from fastcs_ethercat.bench import (
 from fastcs_ethercat.bench.bytecode import compile_package
 from fastcs_ethercat.bench.context import BenchContext
 from fastcs_ethercat.bench.machine import describe_machine
-from fastcs_ethercat.bench.repeater import stop_own_repeaters
+from fastcs_ethercat.bench.repeater import mark_run, stop_repeaters_of_run
 from fastcs_ethercat.bench.report import SCAN_KEYS
 from fastcs_ethercat.loopback import EPICS_LOOPBACK_ENV
 from fastcs_ethercat.process import free_port
@@ -189,6 +189,7 @@ def run_bench(
     the package's bytecode compiled as an install has it; stop any
     caRepeater the CA client library started."""
     compile_package()
+    token = mark_run()
     for variable, value in EPICS_LOOPBACK_ENV.items():
         os.environ[variable] = value
     os.environ.update(server_ports(os.environ))
@@ -197,4 +198,4 @@ def run_bench(
         try:
             return asyncio.run(run_sections(context, sections, progress))
         finally:
-            stop_own_repeaters()
+            stop_repeaters_of_run(token)
