@@ -182,7 +182,7 @@ def bench_live(runs: int) -> None:
             points = [p for t in master.terminals for p in t.points]
             client = await pool.get(plan.net_id, master.symbol_port)
             handles = await acquire(client, points)
-            poller = Poller(client, points, handles.reads, lambda changes, stamp: None)
+            poller = Poller(client, points, handles.reads, lambda changes: None)
             times = []
             for _ in range(runs):
                 started = time.perf_counter()

@@ -71,7 +71,7 @@ async def test_a_value_is_posted_when_it_moved_beyond_the_deadband(
     plain = polled("Term 5 (EL3104).AI Standard Channel 1.Status", Int())
     shown = []
     for value in (100, 102, 103, 104, 106, 101, 100):
-        await started.publish_batch([(noisy, value), (plain, value)], 1.0)
+        await started.publish_batch([(noisy, value), (plain, value)])
         shown.append((noisy.get(), plain.get()))
 
     noisy_shown = [noisy_value for noisy_value, _ in shown]

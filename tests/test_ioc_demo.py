@@ -245,33 +245,25 @@ def _put_lines(demo: Demo, tool: str, pv: str, value: str) -> list[str]:
     return named
 
 
-def test_a_caput_gives_one_audit_line_naming_the_client(demo: Demo) -> None:
-    """One line: the audit's (FastCS's own `PV put` line is left to debug)."""
-    symbol = "Term 24 (EP4374-0002).AO Outputs Channel 4"
+@pytest.mark.parametrize(
+    ("tool", "channel", "value"), [("caput", 4, "321"), ("pvput", 3, "123")]
+)
+def test_a_put_gives_one_audit_line_naming_the_client(
+    demo: Demo, tool: str, channel: int, value: str
+) -> None:
+    """One line: the audit's (FastCS's own `PV put` line is left to debug),
+    naming the client's user and host: CA's host name, or on PV Access
+    (QSRV) the client's address, which QSRV gives asTrapWrite."""
+    symbol = f"Term 24 (EP4374-0002).AO Outputs Channel {channel}"
     pv = demo.by_source(symbol, access="rw")
     before = caget(demo.ioc, pv)[pv]
-    [line] = _put_lines(demo, "caput", pv, "321")
-    found = re.fullmatch(rf"(\S+)@(\S+) {re.escape(pv)}\.VAL (\S+) -> 321", line)
-    assert found is not None, line
-    user, host, old = found.groups()
-
-    assert user == getpass.getuser() and host  # CA's client user and host name
-    assert float(old) == float(before)
-
-
-def test_a_pvput_gives_one_audit_line_naming_the_client(demo: Demo) -> None:
-    """The same for PV Access (QSRV), where the host is the client's address:
-    QSRV gives asTrapWrite the peer's IP, not a host name."""
-    symbol = "Term 24 (EP4374-0002).AO Outputs Channel 3"
-    pv = demo.by_source(symbol, access="rw")
-    before = caget(demo.ioc, pv)[pv]
-    [line] = _put_lines(demo, "pvput", pv, "123")
-    found = re.fullmatch(rf"(\S+)@(\S+) {re.escape(pv)}\.VAL (\S+) -> 123", line)
+    [line] = _put_lines(demo, tool, pv, value)
+    found = re.fullmatch(rf"(\S+)@(\S+) {re.escape(pv)}\.VAL (\S+) -> {value}", line)
     assert found is not None, line
     user, host, old = found.groups()
 
     assert user == getpass.getuser()
-    assert host == "127.0.0.1"  # the client's address (loopback here)
+    assert host == "127.0.0.1" if tool == "pvput" else host  # loopback here
     assert float(old) == float(before)
 
 

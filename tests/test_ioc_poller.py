@@ -37,8 +37,7 @@ class Recorder:
         self.changes: list[list[tuple[Point, object]]] = []
         self.errors: list[list[tuple[Point, int]]] = []
 
-    def on_changes(self, changes: list[tuple[Point, object]], stamp: float) -> None:
-        assert stamp > 0
+    def on_changes(self, changes: list[tuple[Point, object]]) -> None:
         self.changes.append(changes)
 
     def on_errors(self, errors: list[tuple[Point, int]]) -> None:

@@ -55,9 +55,9 @@ def ioc() -> Iterator[IocProcess]:
         started.stop()
 
 
-def publish(ioc: IocProcess, stamp: float, **values: str) -> int:
+def publish(ioc: IocProcess, **values: str) -> int:
     pairs = " ".join(f"{name}={value}" for name, value in values.items())
-    return command(ioc, f"publish {stamp!r} {pairs}")
+    return command(ioc, f"publish {pairs}")
 
 
 def ca_lines(ioc: IocProcess, *names: str) -> dict[str, list[str]]:
@@ -91,7 +91,7 @@ def test_a_batch_posts_every_value_when_it_is_posted(ioc: IocProcess) -> None:
     are processed together, right after the read (here: the command)."""
     before = time.time()
     posted = publish(
-        ioc, before - 10.25, Temperature="21.5", Counts="7", Flag="1", Mode="RUN",
+        ioc, Temperature="21.5", Counts="7", Flag="1", Mode="RUN",
         Text="hi",
     )  # fmt: skip
     after = time.time()
@@ -121,7 +121,7 @@ def test_pva_clients_see_the_newest_value_when_they_connect(ioc: IocProcess) -> 
     starts later and one after the last client left all get the newest."""
     now = time.time()
     for step in range(5):
-        publish(ioc, now + step, Counts=str(100 + step))
+        publish(ioc, Counts=str(100 + step))
     last_posted = time.time()
     fresh = pva_get(ioc, "Counts")["Counts"]
     received: queue.Queue[tuple[int, float]] = queue.Queue()
@@ -131,11 +131,11 @@ def test_pva_clients_see_the_newest_value_when_they_connect(ioc: IocProcess) -> 
             lambda value: received.put((int(value), value.timestamp)),
         )
         first = received.get(timeout=10)
-        publish(ioc, now + 10, Counts="200")
+        publish(ioc, Counts="200")
         second = received.get(timeout=10)
         subscription.close()
     time.sleep(0.5)  # the server sees the last client go
-    publish(ioc, now + 20, Counts="300")
+    publish(ioc, Counts="300")
     after = pva_get(ioc, "Counts")["Counts"]
 
     assert fresh["value"] == 104 and now <= pva_stamp(fresh) <= last_posted
@@ -145,7 +145,7 @@ def test_pva_clients_see_the_newest_value_when_they_connect(ioc: IocProcess) -> 
 
 
 def test_an_alarm_lands_on_the_newest_value(ioc: IocProcess) -> None:
-    publish(ioc, time.time(), Temperature="5.25")
+    publish(ioc, Temperature="5.25")
     command(ioc, "alarm Temperature INVALID COMM")
     alarmed = pva_get(ioc, "Temperature")["Temperature"]
     on_ca = ca_lines(ioc, "Temperature")["Temperature"]
@@ -159,7 +159,7 @@ def test_an_alarm_lands_on_the_newest_value(ioc: IocProcess) -> None:
 
 
 def test_a_value_that_fails_stops_no_other(ioc: IocProcess) -> None:
-    posted = publish(ioc, time.time(), Counts="5000", Temperature="1.5")
+    posted = publish(ioc, Counts="5000", Temperature="1.5")
     failures = [line for line in ioc.output if line.startswith("failure ")]
 
     assert posted == 1
@@ -168,9 +168,9 @@ def test_a_value_that_fails_stops_no_other(ioc: IocProcess) -> None:
 
 
 def test_nan_is_undefined_on_ca_until_a_number_comes(ioc: IocProcess) -> None:
-    publish(ioc, time.time(), Temperature="nan")
+    publish(ioc, Temperature="nan")
     undefined = ca_lines(ioc, "Temperature")["Temperature"]
-    publish(ioc, time.time(), Temperature="2.5")
+    publish(ioc, Temperature="2.5")
     defined = ca_lines(ioc, "Temperature")["Temperature"]
 
     assert undefined[-2:] == ["UDF", "INVALID"], undefined
@@ -180,8 +180,8 @@ def test_nan_is_undefined_on_ca_until_a_number_comes(ioc: IocProcess) -> None:
 def test_processing_a_record_keeps_its_value(ioc: IocProcess) -> None:
     """A client's PROC processes the record as it is: the value put last
     stays (a soft input record with no INP keeps its VAL), at a new time."""
-    publish(ioc, time.time(), Counts="42")
-    publish(ioc, time.time(), Counts="43")
+    publish(ioc, Counts="42")
+    publish(ioc, Counts="43")
     posted = ca_stamp(ca_lines(ioc, "Counts")["Counts"])
     ioc.tool("caput", ioc.pv("Counts.PROC"), "1")
     after = ca_lines(ioc, "Counts")["Counts"]

@@ -8,7 +8,6 @@ request (a master whose handles went invalid)."""
 from __future__ import annotations
 
 import asyncio
-import time
 from typing import Any
 
 import pytest
@@ -164,7 +163,7 @@ async def test_a_setpoint_takes_the_plcs_value_from_a_poll_cycles_batch() -> Non
     output = Output(health)
     Setpoints(health).follow([output.attribute])
     await _settled()
-    published = await health.post_batch([(output.attribute, 42)], time.time())
+    published = await health.post_batch([(output.attribute, 42)])
     await _settled()
 
     assert published.failures == []

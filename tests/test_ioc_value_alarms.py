@@ -54,9 +54,9 @@ async def test_a_set_error_bit_is_published_major_and_clears_with_it() -> None:
     await health.publisher.start()
     error = AttrR(AlarmBool(severities=(0, 2)))
 
-    await health.post(error, True, 100.0)
+    await health.post(error, True)
     raised = alarm_of_value(error), health.publisher.posted
-    await health.post(error, False, 101.0)
+    await health.post(error, False)
     cleared = alarm_of_value(error), health.publisher.posted
 
     assert raised[1] == 1 and cleared[1] == 2  # each posted
@@ -68,7 +68,7 @@ async def test_an_outage_ends_in_the_values_own_alarm_not_in_no_alarm() -> None:
     health = Health()
     await health.publisher.start()
     error = AttrR(AlarmBool(severities=(0, 2)))
-    await health.post(error, True, 1.0)
+    await health.post(error, True)
 
     health.mark_invalid([error], COMM, Status.COMM, "PLC lost")
     lost = health.is_invalid(error)
@@ -86,11 +86,11 @@ async def test_a_scaled_value_follows_its_raw_count() -> None:
     volts = AttrRW(ExactFloat(units="V", prec=4, min=-10.0003, max=10.0))
     health.follow(raw, volts, to_engineering(Scaling(10 / 32767, 0.0, "V")))
 
-    await health.post(raw, 16384, 50.0)
+    await health.post(raw, 16384)
     first = (raw.get(), volts.get())
     health.mark_invalid([raw], READ, Status.READ, "0x705")
     both_invalid = (health.is_invalid(raw), health.is_invalid(volts))
-    await health.post(raw, -32767, 51.0)  # a fresh value ends a READ alarm
+    await health.post(raw, -32767)  # a fresh value ends a READ alarm
     after = (raw.get(), volts.get(), health.invalid_count)
     seen: list[tuple[Any, Any]] = []
 
@@ -98,7 +98,7 @@ async def test_a_scaled_value_follows_its_raw_count() -> None:
         seen.append((attribute, value))
 
     health.watch_value(volts, watch)  # an output's setpoint waits for the PLC
-    await health.post(raw, 0, 52.0)
+    await health.post(raw, 0)
 
     assert first[0] == 16384
     assert first[1] == pytest.approx(5.0002, abs=1e-4)

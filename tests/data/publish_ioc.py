@@ -7,8 +7,8 @@ with limits, a bool, an enum and a text attribute, all published through
 `Health` as poll cycles are. Each stdin line is a command, answered by one
 `done <command> <number>` line:
 
-    publish STAMP NAME=VALUE ...   one batch read at STAMP (time.time()
-                                   seconds); number: values posted
+    publish NAME=VALUE ...         one poll cycle's batch; number: values
+                                   posted
     alarm NAME SEVERITY STATUS     Health.mark_invalid; number: 1
     clear NAME                     Health.mark_ok; number: 1
 """
@@ -90,12 +90,12 @@ class Ready(Transport):
 async def handle(controller: PublishTestController, health: Health, line: str) -> int:
     attributes: dict[str, Any] = controller.attributes
     match line.split():
-        case ["publish", stamp, *pairs]:
+        case ["publish", *pairs]:
             values = []
             for pair in pairs:
                 name, _, text = pair.partition("=")
                 values.append((attributes[name], parse_value(attributes[name], text)))
-            published = await health.post_batch(values, float(stamp))
+            published = await health.post_batch(values)
             for attribute, error in published.failures:
                 print(f"failure {attribute.name}: {error}", flush=True)
             return published.posted

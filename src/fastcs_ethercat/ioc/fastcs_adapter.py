@@ -11,9 +11,8 @@ processing, which would write to the PLC); a setpoint's value onto an
 output record (written without processing).
 
 What FastCS 0.14 does not offer yet, and so the one use of its private
-names: an attribute's value set with the time it was read and an alarm.
-`AttrR.update(value)` has neither (each transport stamps the value with the
-time its callback runs) and costs ~120 µs; `ValueRoute.post` sets what
+names: an attribute's value set with an alarm. `AttrR.update(value)` takes
+none and costs ~120 µs; `ValueRoute.post` sets what
 `update()` sets for the attribute itself (`AttrR._value`, and the waiters
 of `AttrR._on_update_events`) and puts the value into its record. Retired
 by FastCS's `Update` (on its main branch): `attribute.update(Update(...))`.
@@ -57,10 +56,9 @@ no length), and a NUL."""
 
 
 class Update(NamedTuple):
-    """A value with the time it was read and its alarm (EPICS numbers)."""
+    """A value with its alarm (EPICS numbers)."""
 
     value: Any
-    timestamp: float
     severity: int = 0
     status: int = 0
     message: str = ""
@@ -257,7 +255,7 @@ class ValueRoute:
         attribute._value = value  # pyright: ignore[reportPrivateUsage]
         if attribute._on_update_events:  # pyright: ignore[reportPrivateUsage]
             self._set_events(value)
-        self.put(Update(value, 0.0, severity, status, message))
+        self.put(Update(value, severity, status, message))
 
     def _set_events(self, value: Any) -> None:
         """Wake who waits for this value, as `update()` does."""
@@ -294,7 +292,7 @@ def follow_updates(attribute: AttrR[Any, Any]) -> None:
             return  # before iocInit: posted when the database serves
         if not route:
             route.append(ValueRoute(attribute))
-        route[0].put(Update(value, 0.0))
+        route[0].put(Update(value))
 
     attribute.add_on_update_callback(to_record)
 

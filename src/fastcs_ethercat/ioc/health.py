@@ -72,7 +72,7 @@ class Health:
         self.publisher = publisher or Publisher()
         self._reasons: dict[int, dict[str, Reason]] = {}
         self._attributes: dict[int, Attribute[Any, Any]] = {}
-        self._held: dict[int, tuple[Any, float | None]] = {}
+        self._held: dict[int, Any] = {}
         self.followers = Followers()
         self._setpoint: dict[int, Reason] = {}
         """Problems of setpoint PVs alone (ioc.setpoints)."""
@@ -124,25 +124,21 @@ class Health:
         for attribute in list(self.followers.with_followers(attributes)):
             await self._drop(attribute, {reason})
 
-    async def post(
-        self, attribute: AttrR[Any, Any], value: Any, stamp: float | None = None
-    ) -> None:
-        """A fresh value read at `stamp`: publish it, unless the attribute
+    async def post(self, attribute: AttrR[Any, Any], value: Any) -> None:
+        """A fresh value: publish it, unless the attribute
         stays in alarm; then its followers' values."""
         key = id(attribute)
         if key in self._reasons:
-            await self._hold(attribute, value, stamp)
+            await self._hold(attribute, value)
         else:
-            await self.publisher.publish(attribute, value, stamp)
+            await self.publisher.publish(attribute, value)
             if self._watches:
                 await self._watched(attribute, value)
         for follower, convert in self.followers.of(attribute):
-            await self.post(follower, convert(value), stamp)
+            await self.post(follower, convert(value))
 
-    async def post_batch(
-        self, values: list[tuple[AttrR[Any, Any], Any]], stamp: float
-    ) -> Published:
-        """Fresh values of one poll cycle read at `stamp`, as `post` for each
+    async def post_batch(self, values: list[tuple[AttrR[Any, Any], Any]]) -> Published:
+        """Fresh values of one poll cycle, as `post` for each
         (followers included); the ones not in alarm published together."""
         failures: list[Failure] = []
         if self.followers:
@@ -153,10 +149,10 @@ class Health:
             values = [(a, v) for a, v in values if id(a) not in reasons]
             for attribute, value in held:
                 try:
-                    await self._hold(attribute, value, stamp)
+                    await self._hold(attribute, value)
                 except Exception as error:  # one value must not stop the others
                     failures.append((attribute, error))
-        published = await self.publisher.publish_batch(values, stamp)
+        published = await self.publisher.publish_batch(values)
         if self._watches:  # as `post` does, for the values published together
             failed = {id(attribute) for attribute, _ in published.failures}
             for attribute, value in values:
@@ -164,12 +160,10 @@ class Health:
                     await self._watched(attribute, value)
         return published._replace(failures=failures + published.failures)
 
-    async def _hold(
-        self, attribute: AttrR[Any, Any], value: Any, stamp: float | None
-    ) -> None:
+    async def _hold(self, attribute: AttrR[Any, Any], value: Any) -> None:
         """A fresh value of an attribute in alarm: kept, shown when the
         alarm ends; the fresh value disproves `FRESH` reasons."""
-        self._held[id(attribute)] = (value, stamp)
+        self._held[id(attribute)] = value
         await self._drop(attribute, FRESH)
 
     def watch_value(self, attribute: AttrR[Any, Any], watch: ValueWatch) -> None:
@@ -249,19 +243,20 @@ class Health:
             return
         del self._reasons[key]
         self._attributes.pop(key, None)
+        holding = key in self._held
         held = self._held.pop(key, None)
         published = False
-        if held is not None and isinstance(attribute, AttrR):
+        if holding and isinstance(attribute, AttrR):
             try:
-                await self.publisher.publish(attribute, *held)
+                await self.publisher.publish(attribute, held)
                 published = True
             except Exception as error:  # one line: a flood of these is unreadable
                 logger.warning(
                     "cannot post the held value of %s: %s", _name(attribute), error
                 )
         self._clear(attribute)
-        if published and isinstance(attribute, AttrR) and held is not None:
-            await self._watched(attribute, held[0])
+        if published and isinstance(attribute, AttrR):
+            await self._watched(attribute, held)
 
     def _parts(self, attribute: Attribute[Any, Any]) -> Parts:
         """A setpoint with its own problem keeps showing it."""

@@ -26,8 +26,8 @@ from fastcs_ethercat.ioc.plan import Point
 
 logger = logging.getLogger(__name__)
 
-OnChanges = Callable[[list[tuple[Point, object]], float], object]
-"""`on_changes(changes, timestamp)`: (point, value) pairs, time.time() of the read."""
+OnChanges = Callable[[list[tuple[Point, object]]], object]
+"""`on_changes(changes)`: the (point, value) pairs a read found changed."""
 OnErrors = Callable[[list[tuple[Point, int]]], object]
 """`on_errors(errors)`: (point, ADS return code) of points that failed."""
 
@@ -94,7 +94,6 @@ class Poller:
         except AdsError as error:
             self._failed(error.code, str(error))
         else:
-            stamp = time.time()
             self.stats.requests += len(answers)
             changes: list[tuple[Point, object]] = []
             errors: list[tuple[Point, int]] = []
@@ -114,7 +113,7 @@ class Poller:
             if changes:
                 changed = len(changes)
                 self.stats.changes += changed
-                self._hand_on(self.on_changes, changes, stamp)
+                self._hand_on(self.on_changes, changes)
             if errors:
                 self.stats.item_errors += len(errors)
                 self._report(errors)

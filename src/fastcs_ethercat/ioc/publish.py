@@ -1,12 +1,11 @@
-"""Post values to their PVs, every value of one poll cycle at one time.
+"""Post values to their PVs, a poll cycle's changed values together.
 
 The one path of every value the IOC serves: a poll cycle's changed values,
-and the IOC's own (diagnostics, statistics, CoE reads), each posted with
-the time it was read. Each value is put into its record
-(`fastcs_adapter.ValueRoute`), which EPICS processes at once: its alarm
-limits, deadbands and links, the monitors of CA and PVA clients, its time
-the time of that processing (a few milliseconds after the read). Only
-values that changed are posted.
+and the IOC's own (diagnostics, statistics, CoE reads). Each value is put
+into its record (`fastcs_adapter.ValueRoute`), which EPICS processes at
+once: its alarm limits, deadbands and links, the monitors of CA and PVA
+clients, its time the time of that processing (a few milliseconds after
+the read). Only values that changed are posted.
 
 Alarms are not sticky here either: a published value carries its own alarm,
 the one record support gives it (its limits, a bi's OSV, UDF for NaN),
@@ -17,7 +16,6 @@ field's `AlarmInt`) and by its channel's status bits when they are in alarm
 
 from __future__ import annotations
 
-import time
 from collections.abc import Iterable
 from typing import Any, Final, NamedTuple
 
@@ -78,8 +76,7 @@ class _Route:
 class _Batch:
     """What one batch has done so far."""
 
-    def __init__(self, stamp: float) -> None:
-        self.stamp = stamp
+    def __init__(self) -> None:
         self.posted = 0
         self.made = 0
         """Routes made (not prepared ahead)."""
@@ -91,8 +88,8 @@ class Publisher:
 
     Until `start()` (the transports' PVs exist only from when they serve),
     values go through `update()`. The first value published for an attribute
-    is posted even when it equals the attribute's value, so its records start
-    on device time with a real timestamp. A number with a deadband
+    is posted even when it equals the attribute's value, so its records are
+    processed once they serve (their alarm and time set). A number with a deadband
     (`ioc.deadband`) is posted only when it moved further than that from the
     value posted last, which its attribute keeps.
     """
@@ -128,17 +125,14 @@ class Publisher:
         first the current values of `own` (attributes whose value the IOC
         set before, not read from the target)."""
         self.started = True
-        now = time.time()
         initial = [(a, a.get()) for a in own if a.get() is not None]
         self._first.update(id(attribute) for attribute, _ in initial)
-        await self.publish_batch(initial, now)
+        await self.publish_batch(initial)
         settle_garbage_collector()
 
-    async def publish(
-        self, attribute: AttrR[Any, Any], value: Any, stamp: float | None = None
-    ) -> bool:
-        """Post `value` (if new) at `stamp` (now if None); True if posted."""
-        posted, failures = await self.publish_batch([(attribute, value)], stamp)
+    async def publish(self, attribute: AttrR[Any, Any], value: Any) -> bool:
+        """Post `value` (if new); True if posted."""
+        posted, failures = await self.publish_batch([(attribute, value)])
         if failures:
             raise failures[0][1]
         return posted == 1
@@ -146,16 +140,14 @@ class Publisher:
     async def publish_batch(
         self,
         values: Iterable[tuple[AttrR[Any, Any], Any]],
-        stamp: float | None = None,
     ) -> Published:
-        """Post each new value at `stamp` (now if None); a value that fails
+        """Post each new value; a value that fails
         does not stop the others. A channel's values go after its status
         bits, with the worst of their severities (`ioc.channel_alarms`); a
         value whose channel's alarm changed is posted again, unchanged."""
-        stamp = stamp or time.time()
         if not self.started:
             return await self._update_each(values)
-        batch = _Batch(stamp)
+        batch = _Batch()
         carrying: list[tuple[_Route, AttrR[Any, Any], Any]] = []
         touched: dict[int, AttrR[Any, Any]] = {}
         routes = self._routes
@@ -168,19 +160,19 @@ class Publisher:
             elif self._post(batch, entry, attribute, value, None):
                 for carrier in entry.carriers:
                     touched[id(carrier)] = carrier
+        for _, attribute, _ in carrying:
+            touched.pop(id(attribute), None)
+        for attribute in touched.values():  # its value as it was, its alarm not
+            entry = routes.get(id(attribute))
+            if entry is not None and entry.channel is not None:
+                carrying.append((entry, attribute, attribute.get()))
         worst: dict[int, int] = {}  # a channel's severity, once per batch
         for entry, attribute, value in carrying:
-            touched.pop(id(attribute), None)
             channel: Any = entry.channel
             severity = worst.get(id(channel))
             if severity is None:
                 severity = worst[id(channel)] = channel.severity()
             self._post(batch, entry, attribute, value, severity)
-        for attribute in touched.values():  # its value as it was, its alarm not
-            entry = routes.get(id(attribute))
-            if entry is not None and entry.channel is not None:
-                severity = entry.channel.severity()
-                self._post(batch, entry, attribute, attribute.get(), severity)
         if batch.made >= FREEZE_AFTER_ROUTES:
             freeze_new()  # routes live as long as the IOC
         self.posted += batch.posted

@@ -122,7 +122,7 @@ class MasterStatus:
 
 
 MasterReader = Callable[[], Awaitable[MasterStatus]]
-Batch = tuple[list[tuple[Point, Any]], float]
+Batch = list[tuple[Point, Any]]
 """One poll cycle's changes and the time of its read."""
 
 
@@ -331,10 +331,9 @@ class MasterController(Controller):
         """Handles for every point, one poller task per rate, one task posting
         its changes; the outputs' setpoints wait for the PLC's values.
 
-        The poller hands on each cycle's changes synchronously, with the time
-        of its read; they are queued and posted in order, so a slow cycle of
-        posting never runs two batches at once, and every value of one cycle
-        is published with that cycle's one timestamp.
+        The poller hands on each cycle's changes synchronously; they are
+        queued and posted in order, so a slow cycle of posting never runs two
+        batches at once, and one cycle's values are processed together.
         """
         client = await self.connection.client(self.connection.net_id, self.symbol_port)
         served = [p for g in self.groups for p in g.points]
@@ -352,11 +351,9 @@ class MasterController(Controller):
             batches: asyncio.Queue[Batch] = asyncio.Queue()
 
             def on_changes(
-                changes: list[tuple[Point, Any]],
-                stamp: float,
-                queue: asyncio.Queue[Batch] = batches,
+                changes: Batch, queue: asyncio.Queue[Batch] = batches
             ) -> None:
-                queue.put_nowait((changes, stamp))
+                queue.put_nowait(changes)
 
             readable = [p for p in group.points if p.source_name in self.handles.reads]
             group.poller = Poller(
@@ -417,7 +414,7 @@ class MasterController(Controller):
         attributes, health = self.attributes_by_key, self.health
         enums: dict[Any, Any] = {}  # an attribute's enum class, None: no enum
         while True:
-            changes, stamp = await batches.get()
+            changes = await batches.get()
             values: list[tuple[AttrR[Any, Any], Any]] = []
             for point, value in changes:
                 attr = attributes.get(point.key)
@@ -431,7 +428,7 @@ class MasterController(Controller):
                     values.append((attr, value))
                 except Exception as error:  # one value must not stop the others
                     self._failed(point.symbol, error)
-            for attr, error in (await health.post_batch(values, stamp)).failures:
+            for attr, error in (await health.post_batch(values)).failures:
                 self._failed(attr.full_name or attr.name, error)
 
     def _failed(self, what: str, error: Exception) -> None:
