@@ -123,7 +123,7 @@ class MasterStatus:
 
 MasterReader = Callable[[], Awaitable[MasterStatus]]
 Batch = list[tuple[Point, Any]]
-"""One poll cycle's changes and the time of its read."""
+"""One poll cycle's changes."""
 
 
 class MasterAds:
