@@ -29,7 +29,7 @@ from fastcs_ethercat.ioc.alarms import NO_ALARM, Severity, Status, value_alarm
 from fastcs_ethercat.ioc.attributes import CoeIO
 from fastcs_ethercat.ioc.config import IocConfig, load_ioc_config
 from fastcs_ethercat.ioc.connection import Connection
-from fastcs_ethercat.ioc.controllers.master import MasterStatus
+from fastcs_ethercat.ioc.controllers.master import Batch, MasterStatus
 from fastcs_ethercat.ioc.controllers.root import RootController
 from fastcs_ethercat.ioc.controllers.terminal import (
     AlStateView,
@@ -269,14 +269,14 @@ async def test_changes_are_posted_and_a_bad_value_only_marks_its_point() -> None
     mode = next(p for p in ANALOG_POINTS if p.symbol.endswith(".Mode"))
     value = ANALOG_POINTS[0]
     samples = next(p for p in ANALOG_POINTS if p.symbol.endswith(".Samples"))
-    batches: asyncio.Queue[Any] = asyncio.Queue()
+    batches: asyncio.Queue[Batch] = asyncio.Queue()
     changes = [
         (value, -1234),
         (mode, 5),
         (mode, 3),
         (samples, np.arange(10, dtype=np.int16)),
     ]
-    batches.put_nowait((changes, 1.0))  # 3 is no member: must not stop the rest
+    batches.put_nowait(changes)  # 3 is no member: must not stop the rest
     posting = asyncio.create_task(master._post_batches(batches))
     await asyncio.sleep(0.05)
     posting.cancel()
@@ -467,8 +467,8 @@ async def test_a_scaled_value_is_served_in_its_unit_with_its_raw_count() -> None
     volts_in, raw_in = attrs["AIVolts"], attrs["AIVoltsRaw"]
     volts_out, raw_out = attrs["AOVolts"], attrs["AOVoltsRaw"]
     point_in = next(p for p in ANALOG_POINTS if p.symbol.endswith("AI Volts"))
-    batches: asyncio.Queue[Any] = asyncio.Queue()
-    batches.put_nowait(([(point_in, 16384)], 1.0))
+    batches: asyncio.Queue[Batch] = asyncio.Queue()
+    batches.put_nowait([(point_in, 16384)])
     posting = asyncio.create_task(master._post_batches(batches))
     await asyncio.sleep(0.05)
     posting.cancel()
