@@ -484,6 +484,11 @@ def test_pod_like_the_charts_stays_up_and_healthy_for_five_minutes(
             subprocess.run(  # what a half-failed `kube play` leaves
                 [PODMAN, "pod", "rm", "--force", pod], capture_output=True, timeout=120
             )
+            subprocess.run(  # the ConfigMap's volume: podman 4's `kube down` keeps it
+                [PODMAN, "volume", "rm", "--force", f"{pod}-config"],
+                capture_output=True,
+                timeout=120,
+            )
             for pid in processes_with_token(token):
                 stop_pid(pid)
     beats = [int(beat) for _, _, beat in checks if beat is not None]
