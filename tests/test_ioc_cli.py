@@ -25,6 +25,7 @@ from tests.processes import (
     TOKEN_VARIABLE,
     new_token,
     run_cli_child,
+    run_python_child,
 )
 
 pytestmark = pytest.mark.e2e
@@ -93,11 +94,53 @@ def test_a_missing_config_is_one_error_line(tmp_path: Path) -> None:
     ]
 
 
+IMPORTS_PROBE = """
+import atexit, runpy, sys
+
+def heavy():
+    names = {name.split(".")[0] for name in sys.modules}
+    print("imported:", *sorted(names & {"fastcs", "softioc", "p4p"}), file=sys.stderr)
+
+atexit.register(heavy)
+sys.argv[0] = "fastcs-ethercat"
+runpy.run_module("fastcs_ethercat", run_name="__main__", alter_sys=True)
+"""
+"""`python -m fastcs_ethercat`, saying at exit which of FastCS, softioc and
+p4p it imported."""
+
+
+@pytest.mark.parametrize(
+    ("config", "error"),
+    [
+        ("prefix: BL01:\n", "YAML syntax error"),
+        ("prefix: BL01\ntarget: 127.0.0.1\npoll_rate_hz: -1\n", "poll_rate_hz"),
+        ("prefix: BL01\ntarget: 127.0.0.1\nchain: none.yaml\n", "no such chain"),
+    ],
+    ids=["syntax", "value", "chain"],
+)
+def test_a_mistake_in_the_config_is_said_before_fastcs_is_imported(
+    tmp_path: Path, config: str, error: str
+) -> None:
+    """FastCS, softioc and EPICS take 1-2 s of CPU to import: a mistake in the
+    config (or in the chain file it names) is said before that."""
+    path = tmp_path / "ioc.yaml"
+    path.write_text(config)
+    done = run_python_child(IMPORTS_PROBE, "ioc", "--config", str(path),
+                            "--list-pvs", env=ioc_env(new_token()))  # fmt: skip
+
+    assert done.returncode == 2
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 2, done.stderr
+    assert lines[0].startswith(f"error: {tmp_path}") and error in lines[0]
+    assert lines[1] == "imported:"
+
+
 def test_an_unsupported_fastcs_version_stops_the_ioc_in_one_line(
     tmp_path: Path,
 ) -> None:
-    """FastCS's metadata says 0.99.0 (a dist-info ahead on the path): the IOC
-    refuses before anything else, naming the package and both versions."""
+    """FastCS's metadata says 0.99.0 (a dist-info ahead on the path): once its
+    config is read, the IOC refuses before it imports FastCS, naming the
+    package and both versions."""
     fake = tmp_path / "fastcs-0.99.0.dist-info"
     fake.mkdir()
     (fake / "METADATA").write_text(

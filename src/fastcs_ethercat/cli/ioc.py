@@ -154,7 +154,6 @@ def ioc_command(
             "(`fastcs-ethercat ioc schema` prints its JSON schema)"
         )
     _prepare_ioc_process()
-    from fastcs_ethercat.ioc import app
     from fastcs_ethercat.ioc.config import load_ioc_config
 
     overrides = {
@@ -167,6 +166,9 @@ def ioc_command(
         "chain": str(chain) if chain is not None else None,
     }
     settings = load_ioc_config(config, overrides)
+    _check_installed()  # after the config: a bad file is said before these imports
+    from fastcs_ethercat.ioc import app
+
     if settings.access_security_file is not None:
         _check_acf(settings.access_security_file, settings.read_only)
     if list_pvs:
@@ -210,16 +212,21 @@ def schema_command() -> None:
 
 
 def _prepare_ioc_process() -> None:
-    """Before the IOC's imports and tree: the collector held until the
-    terminal types are loaded (`app.root_controller`), then collecting
-    rarely (see `collector`); pydantic's plugins off unless the environment
-    says otherwise (see `PYDANTIC_PLUGINS`); the installed FastCS, softioc
-    and epicsdbbuilder checked."""
+    """Before the configuration is read and the tree built: the collector
+    held until the terminal types are loaded (`app.root_controller`), then
+    collecting rarely (see `collector`); pydantic's plugins off unless the
+    environment says otherwise (see `PYDANTIC_PLUGINS`)."""
     from fastcs_ethercat import collector
 
     collector.collect_rarely()
     collector.hold()
     os.environ.setdefault(*PYDANTIC_PLUGINS)
+
+
+def _check_installed() -> None:
+    """The installed FastCS checked, which imports it, softioc and EPICS
+    (~1-2 s of CPU): after the configuration, so that a mistake in it is
+    said at once."""
     from fastcs_ethercat.ioc.fastcs_adapter import check_installed
 
     check_installed()
@@ -234,6 +241,7 @@ def demo_command(
     """Run the simulator with the demo chain and an IOC against it (loopback)."""
     apply_log_level(log_level)
     _prepare_ioc_process()
+    _check_installed()
     from fastcs_ethercat.cli.demo_hints import DemoHints, write_pv_list
     from fastcs_ethercat.cli.ports import demo_ports
     from fastcs_ethercat.ioc import app

@@ -449,8 +449,6 @@ def _chain_terminal_dirs(raw: dict[str, Any]) -> None:
     chain = raw.get("chain")
     if "terminal_dirs" in raw or not isinstance(chain, str):
         return
-    if not Path(chain).is_file():  # said when the chain is read
-        return
     from fastcs_ethercat.chain.file import load_chain
 
     sources = load_chain(chain).terminal_sources()
