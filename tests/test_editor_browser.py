@@ -177,6 +177,32 @@ def click(driver: Any, name: str) -> None:
     wait(clicked)
 
 
+def save(driver: Any) -> None:
+    """Press the review dialog's Save until the page says "saved". A click
+    can land while the dialog is still opening and do nothing (CI saw one
+    wait 20 s for a save that never came): after a second without a
+    change, the button, if still there, is pressed again (a second save of
+    saved edits writes nothing)."""
+    pressed = [0.0]
+
+    def saved() -> bool:
+        if find(driver, "state").text == "saved":
+            return True
+        buttons = driver.find_elements(By.CSS_SELECTOR, '[data-test="save"]')
+        if buttons and time.monotonic() - pressed[0] > 1.0:
+            pressed[0] = time.monotonic()
+            buttons[0].click()
+        return False
+
+    try:
+        wait(saved)
+    except AssertionError:
+        errors = driver.find_elements(By.CSS_SELECTOR, '[data-test="save-error"]')
+        said = [error.text for error in errors]
+        state = find(driver, "state").text
+        raise AssertionError(f"not saved: state {state!r}, errors {said}") from None
+
+
 def add_from_search(driver: Any, search: WebElement, type_name: str) -> None:
     """Type an exact type name in the catalog search, click its "Add"."""
     search.send_keys(Keys.CONTROL, "a")
@@ -257,8 +283,7 @@ def test_editor_session_matches_the_cli_and_the_ioc(
     driver.save_screenshot(str(screenshots / "02-added-EL3102.png"))
     click(driver, "review")
     wait(lambda: "selected_pdo_group: Standard" in find(driver, "diff").text)
-    click(driver, "save")
-    wait(lambda: find(driver, "state").text == "saved")
+    save(driver)
     added = read_terminal_file(folder / "EL3102.yaml")["EL3102"]
     default = added.default_group
     assert default is not None and added.selected_pdo_group == default.name
@@ -310,8 +335,7 @@ def test_editor_session_matches_the_cli_and_the_ioc(
     diff = find(driver, "diff")
     wait(lambda: "selected_pdo_group: Compact" in diff.text)
     driver.save_screenshot(str(screenshots / "05-diff.png"))
-    click(driver, "save")
-    wait(lambda: find(driver, "state").text == "saved")
+    save(driver)
     driver.save_screenshot(str(screenshots / "06-saved.png"))
 
     # the same choices from the command line give the same bytes
@@ -428,8 +452,7 @@ def test_units_and_severities_from_the_editor_match_the_cli(
     wait(lambda: not find(driver, "meaning-error-0-8").text)
     click(driver, "review")
     wait(lambda: "unit: A" in find(driver, "diff").text)
-    click(driver, "save")
-    wait(lambda: find(driver, "state").text == "saved")
+    save(driver)
 
     by_cli = work / "cli-units" / "EL3124.yaml"
     by_cli.parent.mkdir()
